@@ -1,0 +1,82 @@
+// Strict CSV reading and writing with errors that name the file and line.
+//
+// Comma-separated, first non-comment line is the header, '#' starts a comment line, fields may be
+// double-quoted ("a,b" and "" for a quote). Blank lines are skipped. Every row must have as many
+// fields as the header.
+#pragma once
+
+#include <cstdint>
+#include <fstream>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace epiloc {
+
+// Parses a whole field as a finite double / integer; throws Error naming `where` otherwise.
+double ParseDouble(const std::string& text, const std::string& where);
+int64_t ParseInt(const std::string& text, const std::string& where);
+// Splits one CSV line into fields (quotes handled, no trailing newline).
+std::vector<std::string> SplitCsvLine(const std::string& line);
+// Leading and trailing white space removed.
+std::string Trim(const std::string& text);
+
+class CsvReader {
+ public:
+  // Opens `path` and reads its header; throws Error if it cannot be read or has no header.
+  explicit CsvReader(const std::string& path);
+
+  const std::string& path() const { return path_; }
+  const std::vector<std::string>& header() const { return header_; }
+  bool HasColumn(const std::string& name) const;
+  // Throws Error "<path>: missing column '<name>'" when absent.
+  void RequireColumns(const std::vector<std::string>& names) const;
+
+  // Reads the next row; false at the end of the file.
+  bool Next();
+  // Line number (1-based) of the current row, for messages.
+  int64_t line() const { return line_; }
+  // "path:line", the place of the current row.
+  std::string where() const;
+
+  // Field of the current row by column name; throws Error naming file and line if the column is
+  // missing or the value does not parse.
+  const std::string& Get(const std::string& column) const;
+  double GetDouble(const std::string& column) const;
+  int64_t GetInt(const std::string& column) const;
+  // Empty field or absent column -> nullopt.
+  std::optional<double> GetOptionalDouble(const std::string& column) const;
+
+ private:
+  std::string path_;
+  std::ifstream in_;
+  std::vector<std::string> header_;
+  std::unordered_map<std::string, size_t> column_index_;
+  std::vector<std::string> fields_;
+  int64_t line_ = 0;
+};
+
+// Writes a header and rows; values are formatted by the caller. Throws Error on I/O failure.
+class CsvWriter {
+ public:
+  CsvWriter(const std::string& path, const std::vector<std::string>& header);
+  void WriteRow(const std::vector<std::string>& fields);
+  // Flushes and checks the stream; called by the destructor too (which does not throw).
+  void Close();
+  ~CsvWriter();
+
+ private:
+  std::string path_;
+  std::ofstream out_;
+  size_t num_columns_;
+};
+
+// Quotes a field if it holds a comma, quote or newline.
+std::string CsvEscape(const std::string& field);
+// Shortest text that reads back as the same double ("%.17g" trimmed), "" for NaN.
+std::string FormatDouble(double value);
+// Fixed number of decimals, "" for NaN.
+std::string FormatFixed(double value, int decimals);
+
+}  // namespace epiloc

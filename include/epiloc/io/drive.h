@@ -1,0 +1,85 @@
+// A drive: camera frames with timestamps, GNSS positions the localizer may use, optional ground
+// truth kept apart from them, the camera calibration and optional LiDAR scans with their poses.
+// On disk a drive is a directory with a manifest `drive.json` (format in README.md, section
+// "Drive directory format") that points at the user's own files: an image folder, a CSV of frames
+// or a video; positions as CSV (lat/lon/alt or local x/y/z), NMEA GGA/RMC or a KITTI OXTS folder.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "epiloc/camera/camera.h"
+#include "epiloc/core/types.h"
+#include "epiloc/geo/geodetic.h"
+
+namespace epiloc {
+
+// One camera frame. `image` is a path (absolute, or relative to the drive directory) of an image
+// file, or, for a video drive, empty (the frame is the video's frame number `frame`).
+struct FrameRecord {
+  frame_t frame = kInvalidFrame;  // the drive's own frame number (KITTI frame number, video index)
+  double timestamp_s = 0.0;       // seconds, same clock as the positions (UNIX time for real data)
+  std::string image;
+};
+
+// A position (of the camera's optical centre) at a time. `enu_from_cam`, when known, rotates
+// camera-frame vectors (x right, y down, z forward) into the local ENU frame at `position`.
+struct PositionSample {
+  double timestamp_s = 0.0;
+  Geodetic position;
+  std::optional<Eigen::Quaterniond> enu_from_cam;
+  frame_t frame = kInvalidFrame;  // set when the source ties the sample to a frame
+};
+
+// Samples sorted by strictly increasing time.
+struct PositionTrack {
+  std::string source;  // file the samples came from, for messages
+  std::vector<PositionSample> samples;
+
+  // Position at `timestamp_s`, linear in a local ENU frame between the neighbouring samples (and
+  // slerp of orientations). Returns nullopt if the nearest sample on either side is more than
+  // `max_gap_s` away, or if t lies before the first / after the last sample by more than
+  // `max_gap_s` (within that, the end segment is extrapolated).
+  std::optional<PositionSample> Interpolate(double timestamp_s, double max_gap_s) const;
+};
+
+// A LiDAR scan file and the pose of the sensor when it was taken.
+struct LidarScan {
+  int64_t scan = -1;        // the drive's scan number (KITTI: frame number of the scan)
+  double timestamp_s = 0.0;
+  std::string path;         // absolute, or relative to the drive directory
+  std::string format;       // "kitti_bin" (N x 4 float32 x,y,z,reflectance), "ply", "pcd", "xyz"
+  Geodetic sensor_position;
+  Eigen::Quaterniond enu_from_sensor = Eigen::Quaterniond::Identity();  // local ENU at position
+};
+
+struct Drive {
+  std::string dir;    // the drive directory (where drive.json is)
+  std::string name;   // unique name of the drive, e.g. "kitti_2011_09_26_0005_cam0"
+  Camera camera;      // calibration of the frames as stored (may have distortion)
+  bool colour = false;  // frames are colour images (informative; readers load as stored)
+  std::string video;  // video file when the frames come from one, else empty
+  std::vector<FrameRecord> frames;  // sorted by timestamp; frame numbers unique
+  PositionTrack gnss;                         // may be empty (no GNSS)
+  std::optional<PositionTrack> ground_truth;  // kept apart: never read by the localizer
+  std::vector<LidarScan> lidar;
+  double max_gap_s = 0.5;  // positions further than this from a frame leave it unpositioned
+
+  // Path of a frame's image resolved against `dir`.
+  std::string ImagePath(const FrameRecord& frame) const;
+};
+
+// Reads `dir`/drive.json and everything it refers to. Throws Error naming the file (and line) for
+// a missing or malformed file, timestamps going backwards, a calibration that does not fit the
+// images, out-of-range lat/lon, ...
+Drive LoadDrive(const std::string& dir);
+
+// Writes a drive in the canonical layout: drive.json, frames.csv, gnss.csv, ground_truth.csv,
+// lidar.csv (the files present in the Drive). Image and scan paths are written as given.
+void WriteDrive(const Drive& drive, const std::string& dir);
+
+}  // namespace epiloc

@@ -1,0 +1,182 @@
+#include "epiloc/core/csv.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+
+#include <fmt/format.h>
+
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+
+std::string Trim(const std::string& text) {
+  const auto begin = text.find_first_not_of(" \t\r\n");
+  if (begin == std::string::npos) return "";
+  const auto end = text.find_last_not_of(" \t\r\n");
+  return text.substr(begin, end - begin + 1);
+}
+
+double ParseDouble(const std::string& text, const std::string& where) {
+  const std::string trimmed = Trim(text);
+  if (trimmed.empty()) Throw("{}: empty value where a number is expected", where);
+  errno = 0;
+  char* end = nullptr;
+  const double value = std::strtod(trimmed.c_str(), &end);
+  if (end != trimmed.c_str() + trimmed.size() || errno == ERANGE) {
+    Throw("{}: '{}' is not a number", where, trimmed);
+  }
+  if (!std::isfinite(value)) Throw("{}: '{}' is not a finite number", where, trimmed);
+  return value;
+}
+
+int64_t ParseInt(const std::string& text, const std::string& where) {
+  const std::string trimmed = Trim(text);
+  if (trimmed.empty()) Throw("{}: empty value where an integer is expected", where);
+  errno = 0;
+  char* end = nullptr;
+  const long long value = std::strtoll(trimmed.c_str(), &end, 10);
+  if (end != trimmed.c_str() + trimmed.size() || errno == ERANGE) {
+    Throw("{}: '{}' is not an integer", where, trimmed);
+  }
+  return value;
+}
+
+std::vector<std::string> SplitCsvLine(const std::string& line) {
+  std::vector<std::string> fields;
+  std::string field;
+  bool quoted = false;
+  for (size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+        field += '"';
+        ++i;
+      } else if (c == '"') {
+        quoted = false;
+      } else {
+        field += c;
+      }
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      fields.push_back(Trim(field));
+      field.clear();
+    } else if (c != '\r') {
+      field += c;
+    }
+  }
+  fields.push_back(Trim(field));
+  return fields;
+}
+
+CsvReader::CsvReader(const std::string& path) : path_(path), in_(path) {
+  if (!in_) Throw("{}: cannot open file", path);
+  if (!Next()) Throw("{}: empty file, expected a CSV header", path);
+  header_ = fields_;
+  for (size_t i = 0; i < header_.size(); ++i) {
+    if (header_[i].empty()) Throw("{}: empty column name in header", Where(path_, line_));
+    if (!column_index_.emplace(header_[i], i).second) {
+      Throw("{}: column '{}' appears twice", Where(path_, line_), header_[i]);
+    }
+  }
+}
+
+bool CsvReader::HasColumn(const std::string& name) const { return column_index_.count(name) > 0; }
+
+void CsvReader::RequireColumns(const std::vector<std::string>& names) const {
+  for (const auto& name : names) {
+    if (!HasColumn(name)) Throw("{}: missing column '{}'", path_, name);
+  }
+}
+
+bool CsvReader::Next() {
+  std::string text;
+  while (std::getline(in_, text)) {
+    ++line_;
+    const std::string trimmed = Trim(text);
+    if (trimmed.empty() || trimmed[0] == '#') continue;
+    fields_ = SplitCsvLine(text);
+    if (!header_.empty() && fields_.size() != header_.size()) {
+      Throw("{}: {} fields, the header has {}", where(), fields_.size(), header_.size());
+    }
+    return true;
+  }
+  if (in_.bad()) Throw("{}: read error", path_);
+  return false;
+}
+
+std::string CsvReader::where() const { return Where(path_, line_); }
+
+const std::string& CsvReader::Get(const std::string& column) const {
+  const auto it = column_index_.find(column);
+  if (it == column_index_.end()) Throw("{}: missing column '{}'", path_, column);
+  return fields_.at(it->second);
+}
+
+double CsvReader::GetDouble(const std::string& column) const {
+  return ParseDouble(Get(column), fmt::format("{} column '{}'", where(), column));
+}
+
+int64_t CsvReader::GetInt(const std::string& column) const {
+  return ParseInt(Get(column), fmt::format("{} column '{}'", where(), column));
+}
+
+std::optional<double> CsvReader::GetOptionalDouble(const std::string& column) const {
+  if (!HasColumn(column) || Get(column).empty()) return std::nullopt;
+  return GetDouble(column);
+}
+
+std::string CsvEscape(const std::string& field) {
+  if (field.find_first_of(",\"\n\r") == std::string::npos) return field;
+  std::string quoted = "\"";
+  for (const char c : field) {
+    if (c == '"') quoted += '"';
+    quoted += c;
+  }
+  return quoted + "\"";
+}
+
+std::string FormatDouble(double value) {
+  if (std::isnan(value)) return "";
+  return fmt::format("{}", value);  // fmt prints the shortest round-tripping form
+}
+
+std::string FormatFixed(double value, int decimals) {
+  if (std::isnan(value)) return "";
+  return fmt::format("{:.{}f}", value, decimals);
+}
+
+CsvWriter::CsvWriter(const std::string& path, const std::vector<std::string>& header)
+    : path_(path), out_(path), num_columns_(header.size()) {
+  if (!out_) Throw("{}: cannot open for writing", path);
+  WriteRow(header);
+}
+
+void CsvWriter::WriteRow(const std::vector<std::string>& fields) {
+  if (fields.size() != num_columns_) {
+    Throw("{}: internal error, row of {} fields for {} columns", path_, fields.size(), num_columns_);
+  }
+  for (size_t i = 0; i < fields.size(); ++i) {
+    if (i > 0) out_ << ',';
+    out_ << CsvEscape(fields[i]);
+  }
+  out_ << '\n';
+}
+
+void CsvWriter::Close() {
+  if (!out_.is_open()) return;
+  out_.flush();
+  const bool ok = static_cast<bool>(out_);
+  out_.close();
+  if (!ok) Throw("{}: write failed", path_);
+}
+
+CsvWriter::~CsvWriter() {
+  try {
+    Close();
+  } catch (const Error&) {
+  }
+}
+
+}  // namespace epiloc

@@ -1,0 +1,25 @@
+#include "epiloc/core/logging.h"
+
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+namespace epiloc {
+
+void InitLogging(Verbosity verbosity) {
+  auto logger = spdlog::stderr_color_mt("epiloc");
+  logger->set_pattern("%^[%l]%$ %v");
+  switch (verbosity) {
+    case Verbosity::kQuiet:
+      logger->set_level(spdlog::level::warn);
+      break;
+    case Verbosity::kNormal:
+      logger->set_level(spdlog::level::info);
+      break;
+    case Verbosity::kVerbose:
+      logger->set_level(spdlog::level::debug);
+      break;
+  }
+  spdlog::set_default_logger(logger);
+}
+
+}  // namespace epiloc

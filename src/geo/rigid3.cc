@@ -1,0 +1,27 @@
+#include "epiloc/geo/rigid3.h"
+
+#include <cmath>
+
+namespace epiloc {
+
+Rigid3d Rigid3d::FromMatrix(const Eigen::Matrix3d& r, const Eigen::Vector3d& t) {
+  return Rigid3d(Eigen::Quaterniond(r).normalized(), t);
+}
+
+Rigid3d Rigid3d::Inverse() const {
+  const Eigen::Quaterniond inverse = rotation.conjugate();
+  return Rigid3d(inverse, -(inverse * translation));
+}
+
+Eigen::Matrix<double, 3, 4> Rigid3d::ToMatrix3x4() const {
+  Eigen::Matrix<double, 3, 4> m;
+  m.leftCols<3>() = rotation.toRotationMatrix();
+  m.col(3) = translation;
+  return m;
+}
+
+double RotationDifferenceDeg(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+  return a.angularDistance(b) * 180.0 / M_PI;
+}
+
+}  // namespace epiloc
