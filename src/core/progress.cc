@@ -62,9 +62,14 @@ void Progress::Finish() {
   Render(true);
 }
 
+void Progress::SetTotal(int64_t total) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  total_ = std::max<int64_t>(total, 0);
+}
+
 ProgressCallback Progress::Callback() {
   return [this](int64_t done, int64_t total) {
-    (void)total;
+    SetTotal(total);
     Set(done);
   };
 }

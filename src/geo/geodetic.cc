@@ -1,6 +1,7 @@
 #include "epiloc/geo/geodetic.h"
 
 #include <cmath>
+#include <vector>
 
 #include <GeographicLib/LocalCartesian.hpp>
 
@@ -54,6 +55,13 @@ Geodetic EnuFrame::ToGeodetic(const Eigen::Vector3d& enu) const {
   Geodetic p;
   local_->Reverse(enu.x(), enu.y(), enu.z(), p.lat_deg, p.lon_deg, p.alt_m);
   return p;
+}
+
+Eigen::Matrix3d EnuFrame::EnuFromLocalEnu(const Geodetic& at) const {
+  std::vector<double> m(9);
+  double x, y, z;
+  local_->Forward(at.lat_deg, at.lon_deg, at.alt_m, x, y, z, m);
+  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(m.data());
 }
 
 double CompassHeadingFromEnuDirection(const Eigen::Vector2d& direction_en) {

@@ -40,7 +40,9 @@ class Progress {
   void Set(int64_t done);
   // Prints the final line once; called by the destructor if not called before.
   void Finish();
-  // A ProgressCallback that forwards to Set().
+  // Changes the total (when it becomes known only once work starts).
+  void SetTotal(int64_t total);
+  // A ProgressCallback that forwards to SetTotal() and Set().
   ProgressCallback Callback();
 
   // The line as it would be printed now (for tests), e.g.

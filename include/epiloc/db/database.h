@@ -14,17 +14,13 @@
 
 #include "epiloc/camera/camera.h"
 #include "epiloc/core/types.h"
+#include "epiloc/feature/types.h"
 #include "epiloc/geo/geodetic.h"
 
 struct sqlite3;
 struct sqlite3_stmt;
 
 namespace epiloc {
-
-// Keypoints: one row per feature, columns x, y (pixels, centre of top-left pixel = (0, 0)),
-// scale (pixels), orientation (radians). Descriptors: one row of 128 uint8 per feature.
-using FeatureKeypoints = Eigen::Matrix<float, Eigen::Dynamic, 4, Eigen::RowMajor>;
-using FeatureDescriptors = Eigen::Matrix<uint8_t, Eigen::Dynamic, 128, Eigen::RowMajor>;
 
 struct DbCamera {
   camera_t camera_id = kInvalidCamera;

@@ -5,6 +5,7 @@
 #include <string>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 namespace GeographicLib {
 class LocalCartesian;
@@ -37,6 +38,9 @@ class EnuFrame {
   const Geodetic& origin() const { return origin_; }
   Eigen::Vector3d ToEnu(const Geodetic& position) const;
   Geodetic ToGeodetic(const Eigen::Vector3d& point_in_enu) const;
+  // Rotation taking vectors in the local ENU frame at `at` into this frame (v_this = R * v_local);
+  // identity at the origin, differs by the meridian convergence and curvature elsewhere.
+  Eigen::Matrix3d EnuFromLocalEnu(const Geodetic& at) const;
 
  private:
   Geodetic origin_;

@@ -1,8 +1,9 @@
 // A drive: camera frames with timestamps, GNSS positions the localizer may use, optional ground
 // truth kept apart from them, the camera calibration and optional LiDAR scans with their poses.
 // On disk a drive is a directory with a manifest `drive.json` (format in README.md, section
-// "Drive directory format") that points at the user's own files: an image folder, a CSV of frames
-// or a video; positions as CSV (lat/lon/alt or local x/y/z), NMEA GGA/RMC or a KITTI OXTS folder.
+// "Drive directory format", also docs/drive_format.md) that points at the user's own files: an
+// image folder, a CSV of frames or a video; positions as CSV (lat/lon/alt or local x/y/z), NMEA
+// GGA/RMC or a KITTI OXTS folder (readers in position_readers.h).
 #pragma once
 
 #include <optional>
@@ -24,6 +25,8 @@ struct FrameRecord {
   frame_t frame = kInvalidFrame;  // the drive's own frame number (KITTI frame number, video index)
   double timestamp_s = 0.0;       // seconds, same clock as the positions (UNIX time for real data)
   std::string image;
+
+  bool operator==(const FrameRecord& other) const;
 };
 
 // A position (of the camera's optical centre) at a time. `enu_from_cam`, when known, rotates
@@ -33,6 +36,9 @@ struct PositionSample {
   Geodetic position;
   std::optional<Eigen::Quaterniond> enu_from_cam;
   frame_t frame = kInvalidFrame;  // set when the source ties the sample to a frame
+
+  // Exact equality of every field (orientations compared coefficient by coefficient).
+  bool operator==(const PositionSample& other) const;
 };
 
 // Samples sorted by strictly increasing time.
@@ -44,6 +50,12 @@ struct PositionTrack {
   // slerp of orientations). Returns nullopt if the nearest sample on either side is more than
   // `max_gap_s` away, or if t lies before the first / after the last sample by more than
   // `max_gap_s` (within that, the end segment is extrapolated).
+  //
+  // The ENU frame is the one about the earlier sample of the segment; orientations are first
+  // expressed in that frame (ENU axes turn with position) and the result is given in the ENU frame
+  // at the interpolated position. The result has an orientation only if both neighbours have one
+  // (a single-sample track: that sample's), `timestamp_s` as its time and `frame` = kInvalidFrame
+  // unless `timestamp_s` equals a sample's time exactly (then that sample is returned as is).
   std::optional<PositionSample> Interpolate(double timestamp_s, double max_gap_s) const;
 };
 
@@ -55,6 +67,8 @@ struct LidarScan {
   std::string format;       // "kitti_bin" (N x 4 float32 x,y,z,reflectance), "ply", "pcd", "xyz"
   Geodetic sensor_position;
   Eigen::Quaterniond enu_from_sensor = Eigen::Quaterniond::Identity();  // local ENU at position
+
+  bool operator==(const LidarScan& other) const;
 };
 
 struct Drive {
@@ -71,15 +85,38 @@ struct Drive {
 
   // Path of a frame's image resolved against `dir`.
   std::string ImagePath(const FrameRecord& frame) const;
+  // `video` resolved against `dir` ("" when the drive has no video).
+  std::string VideoPath() const;
+  // Path of a LiDAR scan file resolved against `dir`.
+  std::string ScanPath(const LidarScan& scan) const;
 };
 
 // Reads `dir`/drive.json and everything it refers to. Throws Error naming the file (and line) for
 // a missing or malformed file, timestamps going backwards, a calibration that does not fit the
 // images, out-of-range lat/lon, ...
+//
+// Checks made: unknown keys in drive.json (typos), missing calibration fields, Camera::Check, the
+// first frame's image size against the calibration, every image file exists, frame numbers are
+// unique and frame times never decrease, position times strictly increase, lat/lon in range.
+// `time_offset_s` of the manifest is added to the GNSS and ground-truth timestamps.
 Drive LoadDrive(const std::string& dir);
 
 // Writes a drive in the canonical layout: drive.json, frames.csv, gnss.csv, ground_truth.csv,
-// lidar.csv (the files present in the Drive). Image and scan paths are written as given.
+// lidar.csv (the files present in the Drive), with full double precision, so that
+// LoadDrive(dir) gives back the same drive. Image, video and scan paths are written as given when
+// `dir` is the drive's own directory (or drive.dir is empty); otherwise relative paths are
+// resolved against drive.dir and written absolute, so the new manifest still finds the files.
+// Creates `dir` if needed.
 void WriteDrive(const Drive& drive, const std::string& dir);
+
+// The position of each frame of a drive: `per_frame[i]` is track.Interpolate(frames[i].timestamp_s,
+// drive.max_gap_s) (with `frame` set to the frame's number), `missing` the frame numbers that got
+// none, in drive order.
+struct FramePositions {
+  std::vector<std::optional<PositionSample>> per_frame;
+  std::vector<frame_t> missing;
+};
+// Logs one warning (spdlog) with the number of unpositioned frames and the first few of them.
+FramePositions PositionFrames(const Drive& drive, const PositionTrack& track);
 
 }  // namespace epiloc

@@ -1,0 +1,39 @@
+// SIFT extraction (OpenCV's implementation, Lowe 2004) into epiloc's feature storage types.
+#pragma once
+
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "epiloc/feature/types.h"
+
+namespace epiloc {
+
+struct SiftOptions {
+  // Keep at most this many features, strongest response first (0 = all).
+  int max_num_features = 4000;
+  // Images whose longer side exceeds this are downscaled for detection; keypoints are returned
+  // in the original image's pixel coordinates (0 = never downscale).
+  int max_image_size = 1600;
+  // Scale-space layers per octave (Lowe: 3).
+  int num_octave_layers = 3;
+  // Contrast threshold on the DoG response; lower finds more features in low-contrast images
+  // (OpenCV default 0.04; 0.02 keeps more of the weak but stable road-scene features).
+  double contrast_threshold = 0.02;
+  // Edge-response threshold (ratio of principal curvatures, Lowe: 10).
+  double edge_threshold = 10.0;
+  // Gaussian blur of the base image (Lowe: 1.6).
+  double sigma = 1.6;
+
+  // Throws Error naming the first invalid field.
+  void Check() const;
+};
+
+// Extracts SIFT features from an 8-bit grey or colour image (colour is converted to grey).
+// Throws Error for an empty image or an unsupported pixel type.
+FeatureSet ExtractSift(const cv::Mat& image, const SiftOptions& options);
+
+// 8-bit grey view of an image: colour converted (BGR order), 16-bit scaled to 8-bit.
+cv::Mat ToGrey8(const cv::Mat& image);
+
+}  // namespace epiloc

@@ -1,0 +1,47 @@
+// Building a route database from a survey drive: positions at frame times, SIFT on undistorted
+// frames (in parallel), one transaction per frame so an interrupted build resumes where it
+// stopped, the route polyline from the first drive.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "epiloc/core/progress.h"
+#include "epiloc/core/types.h"
+#include "epiloc/feature/sift.h"
+
+namespace epiloc {
+
+struct BuildDbOptions {
+  // Which positions annotate the frames: "auto" (ground truth if the drive has it, else GNSS),
+  // "ground_truth", "gnss", or the path of a position CSV (timestamp_s, lat_deg/lon_deg/alt_m,
+  // optional qw..qz: e.g. a georeferenced VO trajectory).
+  std::string positions = "auto";
+  // Worker threads for reading, undistorting and SIFT (0 = one per core).
+  int num_threads = 0;
+  SiftOptions sift;
+
+  void Check() const;
+};
+
+struct BuildDbSummary {
+  drive_t drive_id = kInvalidDrive;
+  std::string drive_name;
+  int64_t frames_in_drive = 0;
+  int64_t frames_without_position = 0;  // skipped: no position within the drive's max gap
+  int64_t frames_already_present = 0;   // from an earlier (interrupted) build
+  int64_t frames_added = 0;
+  int64_t features_added = 0;
+  double seconds = 0.0;
+  double route_length_m = 0.0;
+};
+
+// Adds the drive in `drive_dir` to the database at `db_path` (created if missing). Re-running adds
+// no duplicates; a second drive of the same road is projected onto the route of the first.
+// Throws Error for bad input; the database keeps every frame committed before the error.
+BuildDbSummary BuildDatabase(const std::string& drive_dir,
+                             const std::string& db_path,
+                             const BuildDbOptions& options,
+                             const ProgressCallback& progress = nullptr);
+
+}  // namespace epiloc

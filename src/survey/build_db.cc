@@ -1,0 +1,301 @@
+#include "epiloc/survey/build_db.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <exception>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include <opencv2/core.hpp>
+#include <spdlog/spdlog.h>
+
+#include "epiloc/camera/undistorter.h"
+#include "epiloc/core/error.h"
+#include "epiloc/core/hash.h"
+#include "epiloc/db/database.h"
+#include "epiloc/geo/route.h"
+#include "epiloc/io/drive.h"
+#include "epiloc/io/frame_reader.h"
+#include "epiloc/io/position_readers.h"
+
+namespace epiloc {
+namespace {
+
+struct FrameJob {
+  size_t frame_index = 0;  // index into Drive::frames
+  PositionSample position;
+};
+
+struct FrameResult {
+  DbFrame frame;
+  FeatureSet features;
+};
+
+// Restores OpenCV's thread count when the build ends: frame-level parallelism replaces OpenCV's
+// own, which would oversubscribe the cores.
+class ScopedOpenCvThreads {
+ public:
+  explicit ScopedOpenCvThreads(int num_threads) : previous_(cv::getNumThreads()) {
+    cv::setNumThreads(num_threads);
+  }
+  ~ScopedOpenCvThreads() { cv::setNumThreads(previous_); }
+
+ private:
+  int previous_;
+};
+
+PositionTrack SelectPositions(const Drive& drive, const std::string& choice) {
+  if (choice == "auto") {
+    if (drive.ground_truth && !drive.ground_truth->samples.empty()) return *drive.ground_truth;
+    if (!drive.gnss.samples.empty()) return drive.gnss;
+    Throw("{}: the drive has neither ground truth nor GNSS positions", drive.dir);
+  }
+  if (choice == "ground_truth") {
+    if (!drive.ground_truth || drive.ground_truth->samples.empty()) {
+      Throw("{}: the drive has no ground truth positions", drive.dir);
+    }
+    return *drive.ground_truth;
+  }
+  if (choice == "gnss") {
+    if (drive.gnss.samples.empty()) Throw("{}: the drive has no GNSS positions", drive.dir);
+    return drive.gnss;
+  }
+  return ReadPositionCsv(choice, std::nullopt);
+}
+
+DbCamera CameraRecord(const Undistorter& undistorter) {
+  DbCamera camera;
+  camera.camera = undistorter.undistorted_camera();
+  camera.original = undistorter.distorted_camera();
+  return camera;
+}
+
+// The drive's row: found (resume / re-run) or created. A drive of the same name built from a
+// different camera is refused rather than mixed.
+DbDrive EnsureDrive(Database& db,
+                    const Drive& drive,
+                    const DbCamera& camera,
+                    const std::string& positions,
+                    int64_t num_planned) {
+  if (std::optional<DbDrive> existing = db.FindDrive(drive.name)) {
+    const DbCamera stored = db.ReadCamera(existing->camera_id);
+    if (!(stored.original == camera.original)) {
+      Throw("{}: drive '{}' is already in the database with another camera calibration",
+            db.path(), drive.name);
+    }
+    existing->num_frames_planned = num_planned;
+    existing->complete = false;  // set again when this run has added every planned frame
+    existing->positions = positions;
+    db.UpdateDrive(*existing);
+    return *existing;
+  }
+  DbDrive record;
+  record.name = drive.name;
+  record.source_dir = drive.dir;
+  record.camera_id = db.WriteCamera(camera);
+  record.positions = positions;
+  record.num_frames_planned = num_planned;
+  record.drive_id = db.WriteDrive(record);
+  return record;
+}
+
+double HeadingDeg(const DbFrame& frame, const Route& route) {
+  if (frame.enu_from_cam) {
+    const Eigen::Vector3d axis = *frame.enu_from_cam * Eigen::Vector3d::UnitZ();
+    if (axis.head<2>().norm() > 1e-6) return CompassHeadingFromEnuDirection(axis.head<2>());
+  }
+  return CompassHeadingFromEnuDirection(route.DirectionAt(frame.s_m).head<2>());
+}
+
+}  // namespace
+
+void BuildDbOptions::Check() const {
+  EPILOC_CHECK(!positions.empty(), "build-db: --positions must not be empty");
+  EPILOC_CHECK(num_threads >= 0, "build-db: --threads must be >= 0, got {}", num_threads);
+  sift.Check();
+}
+
+BuildDbSummary BuildDatabase(const std::string& drive_dir,
+                             const std::string& db_path,
+                             const BuildDbOptions& options,
+                             const ProgressCallback& progress) {
+  options.Check();
+  const auto start = std::chrono::steady_clock::now();
+  const Drive drive = LoadDrive(drive_dir);
+  const PositionTrack track = SelectPositions(drive, options.positions);
+  const FramePositions positions = PositionFrames(drive, track);
+
+  BuildDbSummary summary;
+  summary.drive_name = drive.name;
+  summary.frames_in_drive = static_cast<int64_t>(drive.frames.size());
+  summary.frames_without_position = static_cast<int64_t>(positions.missing.size());
+
+  std::vector<FrameJob> positioned;
+  for (size_t i = 0; i < drive.frames.size(); ++i) {
+    if (positions.per_frame[i]) positioned.push_back({i, *positions.per_frame[i]});
+  }
+  EPILOC_CHECK(positioned.size() >= 2, "{}: only {} frames have a position within {} s",
+               drive.dir, positioned.size(), drive.max_gap_s);
+
+  const Undistorter undistorter(drive.camera);
+  Database db(db_path);
+
+  // Set-up is one unit of work: origin, route, camera and drive rows appear together or not at all.
+  DbDrive drive_record;
+  std::optional<EnuFrame> enu;
+  std::vector<Eigen::Vector3d> route_points;
+  {
+    Database::Transaction transaction(db);
+    std::optional<Geodetic> origin = db.EnuOrigin();
+    if (!origin) {
+      origin = positioned.front().position.position;
+      db.SetEnuOrigin(*origin);
+    }
+    enu.emplace(*origin);
+    route_points = db.ReadRoute();
+    if (route_points.empty()) {
+      for (const FrameJob& job : positioned) route_points.push_back(enu->ToEnu(job.position.position));
+      db.WriteRoute(Route(route_points).points());
+      route_points = db.ReadRoute();
+    }
+    drive_record = EnsureDrive(db, drive, CameraRecord(undistorter), options.positions,
+                               static_cast<int64_t>(positioned.size()));
+    transaction.Commit();
+  }
+  const Route route(route_points);
+  summary.drive_id = drive_record.drive_id;
+  summary.route_length_m = route.length_m();
+
+  std::vector<FrameJob> todo;
+  for (const FrameJob& job : positioned) {
+    if (db.HasFrame(drive_record.drive_id, drive.frames[job.frame_index].frame)) {
+      ++summary.frames_already_present;
+    } else {
+      todo.push_back(job);
+    }
+  }
+  if (summary.frames_already_present > 0) {
+    spdlog::info("drive '{}': {} frames already in {}, {} to add", drive.name,
+                 summary.frames_already_present, db_path, todo.size());
+  }
+
+  const int num_threads = options.num_threads > 0
+                              ? options.num_threads
+                              : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  ScopedOpenCvThreads opencv_threads(1);
+  FrameReader reader(drive);
+
+  // Workers extract in any order; the writer commits in drive order, one transaction per frame.
+  // At most max_in_flight results wait in memory.
+  const size_t max_in_flight = 2 * static_cast<size_t>(num_threads) + 2;
+  std::atomic<size_t> next_job{0};
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::map<size_t, FrameResult> ready;
+  size_t num_written = 0;
+  bool stop = false;
+  std::exception_ptr failure;
+
+  auto work = [&]() {
+    while (true) {
+      const size_t k = next_job.fetch_add(1);
+      if (k >= todo.size()) return;
+      {
+        std::unique_lock<std::mutex> lock(mutex);
+        changed.wait(lock, [&] { return stop || k < num_written + max_in_flight; });
+        if (stop) return;
+      }
+      try {
+        const FrameJob& job = todo[k];
+        const FrameRecord& record = drive.frames[job.frame_index];
+        const cv::Mat image = reader.ReadGrey(job.frame_index);
+        FrameResult result;
+        result.features = ExtractSift(undistorter.Undistort(image), options.sift);
+        DbFrame& frame = result.frame;
+        frame.drive_id = drive_record.drive_id;
+        frame.frame = record.frame;
+        frame.timestamp_s = record.timestamp_s;
+        if (record.image.empty()) {
+          frame.image_hash = HashBytes(image.data, image.total() * image.elemSize());
+        } else {
+          frame.image_path = drive.ImagePath(record);
+          frame.image_hash = HashFile(frame.image_path);
+        }
+        frame.position = job.position.position;
+        frame.center_in_enu = enu->ToEnu(frame.position);
+        if (job.position.enu_from_cam) {
+          frame.enu_from_cam = Eigen::Quaterniond(enu->EnuFromLocalEnu(frame.position) *
+                                                  job.position.enu_from_cam->toRotationMatrix())
+                                   .normalized();
+        }
+        frame.s_m = route.Project(frame.center_in_enu).s_m;
+        frame.heading_deg = HeadingDeg(frame, route);
+        frame.num_features = result.features.size();
+        std::lock_guard<std::mutex> lock(mutex);
+        ready.emplace(k, std::move(result));
+        changed.notify_all();
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!failure) failure = std::current_exception();
+        stop = true;
+        changed.notify_all();
+        return;
+      }
+    }
+  };
+
+  std::vector<std::thread> workers;
+  for (int i = 0; i < num_threads; ++i) workers.emplace_back(work);
+
+  try {
+    for (size_t k = 0; k < todo.size(); ++k) {
+      FrameResult result;
+      {
+        std::unique_lock<std::mutex> lock(mutex);
+        changed.wait(lock, [&] { return stop || ready.count(k) > 0; });
+        if (ready.count(k) == 0) break;  // a worker failed
+        result = std::move(ready.at(k));
+        ready.erase(k);
+      }
+      {
+        Database::Transaction transaction(db);
+        db.WriteFrame(result.frame, result.features.keypoints, result.features.descriptors);
+        transaction.Commit();
+      }
+      summary.frames_added += 1;
+      summary.features_added += result.features.size();
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        num_written = k + 1;
+        changed.notify_all();
+      }
+      if (progress) {
+        progress(summary.frames_already_present + summary.frames_added,
+                 static_cast<int64_t>(positioned.size()));
+      }
+    }
+  } catch (...) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!failure) failure = std::current_exception();
+    stop = true;
+    changed.notify_all();
+  }
+  for (std::thread& worker : workers) worker.join();
+  if (failure) std::rethrow_exception(failure);
+
+  {
+    Database::Transaction transaction(db);
+    drive_record.complete = true;
+    db.UpdateDrive(drive_record);
+    transaction.Commit();
+  }
+  summary.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+}  // namespace epiloc

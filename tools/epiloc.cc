@@ -1,0 +1,52 @@
+// epiloc: locate a vehicle along a surveyed road from a dashcam and a cheap GPS.
+// `epiloc <command> [options]`; `epiloc help` lists the commands.
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <string>
+
+#include "epiloc/cli/commands.h"
+#include "epiloc/core/error.h"
+
+namespace {
+
+void PrintUsage() {
+  std::printf("epiloc %s: locate a vehicle along a surveyed road from a dashcam and a cheap GPS\n\n",
+              EPILOC_VERSION);
+  std::printf("usage: epiloc <command> [options]    (epiloc <command> --help for its options)\n\n");
+  std::printf("commands:\n");
+  for (const epiloc::Command& command : epiloc::Commands()) {
+    std::printf("  %-14s %s\n", command.name.c_str(), command.summary.c_str());
+  }
+  std::printf("  %-14s %s\n", "help", "Print this list");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || std::strcmp(argv[1], "help") == 0 || std::strcmp(argv[1], "--help") == 0 ||
+      std::strcmp(argv[1], "-h") == 0) {
+    PrintUsage();
+    return argc < 2 ? epiloc::kExitUsage : epiloc::kExitOk;
+  }
+  if (std::strcmp(argv[1], "--version") == 0 || std::strcmp(argv[1], "version") == 0) {
+    std::printf("epiloc %s\n", EPILOC_VERSION);
+    return epiloc::kExitOk;
+  }
+  const std::string name = argv[1];
+  for (const epiloc::Command& command : epiloc::Commands()) {
+    if (command.name != name) continue;
+    try {
+      return command.run(argc - 1, argv + 1);
+    } catch (const epiloc::Error& e) {
+      std::fprintf(stderr, "epiloc %s: error: %s\n", name.c_str(), e.what());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "epiloc %s: error: %s\n", name.c_str(), e.what());
+    }
+    return epiloc::kExitError;
+  }
+  const std::string suggestion = epiloc::SuggestCommand(name);
+  std::fprintf(stderr, "epiloc: unknown command '%s'%s (see 'epiloc help')\n", name.c_str(),
+               suggestion.empty() ? "" : (", did you mean '" + suggestion + "'?").c_str());
+  return epiloc::kExitUsage;
+}
