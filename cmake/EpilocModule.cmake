@@ -19,5 +19,5 @@ function(epiloc_test module name)
   target_compile_definitions(${target} PRIVATE
     EPILOC_SHARED_DATA_DIR="${EPILOC_SOURCE_DIR}/../shared/data"
     EPILOC_TEST_DATA_DIR="${EPILOC_SOURCE_DIR}/data")
-  gtest_discover_tests(${target} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS ${module})
+  gtest_discover_tests(${target} TEST_PREFIX "${module}_" DISCOVERY_TIMEOUT 60 PROPERTIES LABELS ${module})
 endfunction()

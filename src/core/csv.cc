@@ -46,6 +46,8 @@ std::vector<std::string> SplitCsvLine(const std::string& line) {
   std::vector<std::string> fields;
   std::string field;
   bool quoted = false;
+  // Spaces inside quotes are data; only those around quotes are trimmed.
+  bool was_quoted = false;
   for (size_t i = 0; i < line.size(); ++i) {
     const char c = line[i];
     if (quoted) {
@@ -58,15 +60,17 @@ std::vector<std::string> SplitCsvLine(const std::string& line) {
         field += c;
       }
     } else if (c == '"') {
-      quoted = true;
+      if (!was_quoted) field = Trim(field);
+      quoted = was_quoted = true;
     } else if (c == ',') {
-      fields.push_back(Trim(field));
+      fields.push_back(was_quoted ? field : Trim(field));
       field.clear();
-    } else if (c != '\r') {
+      was_quoted = false;
+    } else if (c != '\r' && !(was_quoted && (c == ' ' || c == '\t'))) {
       field += c;
     }
   }
-  fields.push_back(Trim(field));
+  fields.push_back(was_quoted ? field : Trim(field));
   return fields;
 }
 
@@ -128,7 +132,10 @@ std::optional<double> CsvReader::GetOptionalDouble(const std::string& column) co
 }
 
 std::string CsvEscape(const std::string& field) {
-  if (field.find_first_of(",\"\n\r") == std::string::npos) return field;
+  // Quoted too when it has spaces at either end, which the reader trims from
+  // unquoted fields.
+  const bool plain = field.find_first_of(",\"\n\r") == std::string::npos;
+  if (plain && field == Trim(field)) return field;
   std::string quoted = "\"";
   for (const char c : field) {
     if (c == '"') quoted += '"';

@@ -67,6 +67,8 @@ Eigen::Matrix3d EnuFrame::EnuFromLocalEnu(const Geodetic& at) const {
 double CompassHeadingFromEnuDirection(const Eigen::Vector2d& direction_en) {
   double heading = std::atan2(direction_en.x(), direction_en.y()) * 180.0 / M_PI;
   if (heading < 0) heading += 360.0;
+  // Just west of north, a tiny negative angle rounds to 360; keep [0, 360).
+  if (heading >= 360.0) heading = 0.0;
   return heading;
 }
 

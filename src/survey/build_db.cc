@@ -48,12 +48,15 @@ class ScopedOpenCvThreads {
   int previous_;
 };
 
+// Resolves "auto" to the source it picks, so the database records what was used.
+std::string ResolvePositionChoice(const Drive& drive, const std::string& choice) {
+  if (choice != "auto") return choice;
+  if (drive.ground_truth && !drive.ground_truth->samples.empty()) return "ground_truth";
+  if (!drive.gnss.samples.empty()) return "gnss";
+  Throw("{}: the drive has neither ground truth nor GNSS positions", drive.dir);
+}
+
 PositionTrack SelectPositions(const Drive& drive, const std::string& choice) {
-  if (choice == "auto") {
-    if (drive.ground_truth && !drive.ground_truth->samples.empty()) return *drive.ground_truth;
-    if (!drive.gnss.samples.empty()) return drive.gnss;
-    Throw("{}: the drive has neither ground truth nor GNSS positions", drive.dir);
-  }
   if (choice == "ground_truth") {
     if (!drive.ground_truth || drive.ground_truth->samples.empty()) {
       Throw("{}: the drive has no ground truth positions", drive.dir);
@@ -111,6 +114,31 @@ double HeadingDeg(const DbFrame& frame, const Route& route) {
   return CompassHeadingFromEnuDirection(route.DirectionAt(frame.s_m).head<2>());
 }
 
+// Removes what a failed run added: its frames, the drive row if it created it (else restores the
+// row as it was), and the origin and route if it set them. One transaction; a failure to undo is
+// logged, and the original error is what the caller sees.
+void UndoBuild(Database& db,
+               const DbDrive& drive_record,
+               const std::optional<DbDrive>& previous_record,
+               bool created_origin,
+               const std::vector<image_t>& added_images) {
+  try {
+    Database::Transaction transaction(db);
+    for (const image_t image_id : added_images) db.DeleteFrame(image_id);
+    if (previous_record) {
+      db.UpdateDrive(*previous_record);
+    } else if (drive_record.drive_id != kInvalidDrive) {
+      db.DeleteDrive(drive_record.drive_id);
+    }
+    if (created_origin) db.ClearRouteAndOrigin();
+    transaction.Commit();
+    spdlog::info("{}: build stopped, the {} frames added by this run were removed", db.path(),
+                 added_images.size());
+  } catch (const std::exception& e) {
+    spdlog::error("{}: could not undo the failed build: {}", db.path(), e.what());
+  }
+}
+
 }  // namespace
 
 void BuildDbOptions::Check() const {
@@ -126,7 +154,8 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
   options.Check();
   const auto start = std::chrono::steady_clock::now();
   const Drive drive = LoadDrive(drive_dir);
-  const PositionTrack track = SelectPositions(drive, options.positions);
+  const std::string position_source = ResolvePositionChoice(drive, options.positions);
+  const PositionTrack track = SelectPositions(drive, position_source);
   const FramePositions positions = PositionFrames(drive, track);
 
   BuildDbSummary summary;
@@ -142,16 +171,22 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
                drive.dir, positioned.size(), drive.max_gap_s);
 
   const Undistorter undistorter(drive.camera);
+  const FrameReader reader(drive);
   Database db(db_path);
 
   // Set-up is one unit of work: origin, route, camera and drive rows appear together or not at all.
   DbDrive drive_record;
   std::optional<EnuFrame> enu;
   std::vector<Eigen::Vector3d> route_points;
+  // What this run changed, so bad input found half-way leaves the database as it was.
+  const std::optional<DbDrive> previous_record = db.FindDrive(drive.name);
+  bool created_origin = false;
+  std::vector<image_t> added_images;
   {
     Database::Transaction transaction(db);
     std::optional<Geodetic> origin = db.EnuOrigin();
     if (!origin) {
+      created_origin = true;
       origin = positioned.front().position.position;
       db.SetEnuOrigin(*origin);
     }
@@ -162,7 +197,7 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
       db.WriteRoute(Route(route_points).points());
       route_points = db.ReadRoute();
     }
-    drive_record = EnsureDrive(db, drive, CameraRecord(undistorter), options.positions,
+    drive_record = EnsureDrive(db, drive, CameraRecord(undistorter), position_source,
                                static_cast<int64_t>(positioned.size()));
     transaction.Commit();
   }
@@ -187,7 +222,6 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
                               ? options.num_threads
                               : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   ScopedOpenCvThreads opencv_threads(1);
-  FrameReader reader(drive);
 
   // Workers extract in any order; the writer commits in drive order, one transaction per frame.
   // At most max_in_flight results wait in memory.
@@ -263,7 +297,8 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
       }
       {
         Database::Transaction transaction(db);
-        db.WriteFrame(result.frame, result.features.keypoints, result.features.descriptors);
+        added_images.push_back(
+            db.WriteFrame(result.frame, result.features.keypoints, result.features.descriptors));
         transaction.Commit();
       }
       summary.frames_added += 1;
@@ -285,7 +320,10 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
     changed.notify_all();
   }
   for (std::thread& worker : workers) worker.join();
-  if (failure) std::rethrow_exception(failure);
+  if (failure) {
+    UndoBuild(db, drive_record, previous_record, created_origin, added_images);
+    std::rethrow_exception(failure);
+  }
 
   {
     Database::Transaction transaction(db);

@@ -54,6 +54,8 @@ struct DbFrame {
   int num_features = 0;
 };
 
+// One connection; use a Database from one thread at a time (its prepared
+// statements are shared).
 class Database {
  public:
   // The schema version this build writes (number of the last migration in db_schema/).
@@ -75,7 +77,9 @@ class Database {
   void SetMeta(const std::string& key, const std::string& value);
   std::optional<std::string> GetMeta(const std::string& key) const;
 
-  // The ENU frame origin, set once by the first drive.
+  // The ENU frame origin, set once by the first drive. Setting it again to the
+  // same value is a no-op; to a different value throws Error (every stored ENU
+  // position depends on it).
   std::optional<Geodetic> EnuOrigin() const;
   void SetEnuOrigin(const Geodetic& origin);
 
@@ -87,7 +91,8 @@ class Database {
   std::optional<DbDrive> FindDrive(const std::string& name) const;
   std::vector<DbDrive> ReadDrives() const;
 
-  // Inserts a frame with its features; throws if (drive_id, frame) exists. Returns the id.
+  // Inserts a frame with its features atomically; throws if (drive_id, frame)
+  // exists. The stored num_features is keypoints.rows(). Returns the id.
   image_t WriteFrame(const DbFrame& frame,
                      const FeatureKeypoints& keypoints,
                      const FeatureDescriptors& descriptors);
@@ -103,6 +108,13 @@ class Database {
   // The route polyline (database ENU, metres), written once from the first drive.
   void WriteRoute(const std::vector<Eigen::Vector3d>& points_in_enu);
   std::vector<Eigen::Vector3d> ReadRoute() const;
+
+  // Removal, for undoing a failed build: a frame (with its features); a drive (with its frames,
+  // and its camera if no other drive uses it); the route and ENU origin (only sensible when no
+  // drive remains).
+  void DeleteFrame(image_t image_id);
+  void DeleteDrive(drive_t drive_id);
+  void ClearRouteAndOrigin();
 
   // A unit of work: commits on Commit(), rolls back when destroyed without it (also during an
   // exception). Not nestable.

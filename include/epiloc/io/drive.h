@@ -61,10 +61,10 @@ struct PositionTrack {
 
 // A LiDAR scan file and the pose of the sensor when it was taken.
 struct LidarScan {
-  int64_t scan = -1;        // the drive's scan number (KITTI: frame number of the scan)
+  int64_t scan = -1;  // the drive's scan number (KITTI: frame number of the scan)
   double timestamp_s = 0.0;
-  std::string path;         // absolute, or relative to the drive directory
-  std::string format;       // "kitti_bin" (N x 4 float32 x,y,z,reflectance), "ply", "pcd", "xyz"
+  std::string path;    // absolute, or relative to the drive directory
+  std::string format;  // "kitti_bin" (N x 4 float32 x,y,z,reflectance), "ply", "pcd", "xyz"
   Geodetic sensor_position;
   Eigen::Quaterniond enu_from_sensor = Eigen::Quaterniond::Identity();  // local ENU at position
 
@@ -72,12 +72,12 @@ struct LidarScan {
 };
 
 struct Drive {
-  std::string dir;    // the drive directory (where drive.json is)
-  std::string name;   // unique name of the drive, e.g. "kitti_2011_09_26_0005_cam0"
-  Camera camera;      // calibration of the frames as stored (may have distortion)
+  std::string dir;      // the drive directory (where drive.json is)
+  std::string name;     // unique name of the drive, e.g. "kitti_2011_09_26_0005_cam0"
+  Camera camera;        // calibration of the frames as stored (may have distortion)
   bool colour = false;  // frames are colour images (informative; readers load as stored)
-  std::string video;  // video file when the frames come from one, else empty
-  std::vector<FrameRecord> frames;  // sorted by timestamp; frame numbers unique
+  std::string video;    // video file when the frames come from one, else empty
+  std::vector<FrameRecord> frames;            // sorted by timestamp; frame numbers unique
   PositionTrack gnss;                         // may be empty (no GNSS)
   std::optional<PositionTrack> ground_truth;  // kept apart: never read by the localizer
   std::vector<LidarScan> lidar;

@@ -1,0 +1,69 @@
+// Reading the frames of a drive as 8-bit images, from image files or a video.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "epiloc/camera/camera.h"
+#include "epiloc/io/drive.h"
+
+namespace epiloc {
+
+// Reads frames by their index into drive.frames. Copies what it needs from the drive (keeps no
+// reference to it). Thread-safe: image files are read concurrently; a video is decoded
+// sequentially under a mutex, seeking only when the index goes backwards or jumps more than
+// kMaxVideoSkip frames ahead, so reading in order decodes each frame once.
+//
+// PNG and JPEG, grey or colour, 8 or 16 bit (16-bit values are scaled to 8 bit by 1/256) are
+// accepted; pixels are read as stored (no EXIF rotation). Errors: "<path>: cannot read image" for
+// a missing or corrupt file, "<path>: image size WxH differs from the calibration's WxH" for a
+// size mismatch.
+class FrameReader {
+ public:
+  static constexpr int64_t kMaxVideoSkip = 30;
+
+  explicit FrameReader(const Drive& drive);
+  FrameReader(const FrameReader&) = delete;
+  FrameReader& operator=(const FrameReader&) = delete;
+
+  size_t size() const { return frames_.size(); }
+
+  // CV_8UC1 image of frame `index` (colour converted to grey). Throws Error for an index out of
+  // range and the failures above.
+  cv::Mat ReadGrey(size_t index) const;
+  // CV_8UC3 BGR image of frame `index` (grey replicated into three channels).
+  cv::Mat ReadColour(size_t index) const;
+
+  // FrameContentHash of frame `index`; for a video the hash of the video file is computed once.
+  std::string ContentHash(size_t index) const;
+
+ private:
+  cv::Mat Read(size_t index, bool colour) const;
+  cv::Mat ReadVideoFrame(frame_t frame) const;
+
+  std::string dir_;
+  Camera camera_;
+  std::vector<FrameRecord> frames_;
+  std::string video_path_;
+
+  mutable std::mutex video_mutex_;  // guards the members below
+  mutable cv::VideoCapture capture_;
+  mutable frame_t next_video_frame_ = 0;  // frame the next grab() returns
+  mutable std::string video_hash_;
+};
+
+// Content hash (epiloc::HashFile, 32 hex digits) of frame `index`'s image file; for a video frame,
+// the hash of "<hash of the video file>:<frame number>". Throws Error if the file cannot be read.
+std::string FrameContentHash(const Drive& drive, size_t index);
+
+// Throws Error "<path>: image size WxH differs from the calibration's WxH" unless `image` has the
+// camera's size.
+void CheckImageSize(const cv::Mat& image, const Camera& camera, const std::string& path);
+
+}  // namespace epiloc

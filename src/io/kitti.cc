@@ -1,0 +1,323 @@
+#include "epiloc/io/kitti.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <regex>
+#include <sstream>
+
+#include <spdlog/spdlog.h>
+
+#include "epiloc/core/csv.h"
+#include "epiloc/core/error.h"
+#include "epiloc/geo/rigid3.h"
+#include "epiloc/io/frame_reader.h"
+#include "epiloc/io/position_readers.h"
+#include "io_internal.h"
+
+namespace epiloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+// "key: v1 v2 ..." lines of a KITTI calibration file; keys whose values are not all numbers
+// (calib_time) are left out.
+class CalibFile {
+ public:
+  explicit CalibFile(const std::string& path) : path_(path) {
+    std::ifstream in(path);
+    if (!in) Throw("{}: cannot open calibration file", path);
+    std::string line;
+    while (std::getline(in, line)) {
+      const size_t colon = line.find(':');
+      if (colon == std::string::npos) continue;
+      std::istringstream values(line.substr(colon + 1));
+      std::vector<double> numbers;
+      std::string token;
+      bool numeric = true;
+      while (numeric && values >> token) {
+        char* end = nullptr;
+        numbers.push_back(std::strtod(token.c_str(), &end));
+        numeric = end == token.c_str() + token.size() && std::isfinite(numbers.back());
+      }
+      if (numeric) values_[Trim(line.substr(0, colon))] = numbers;
+    }
+  }
+
+  const std::vector<double>& Get(const std::string& key, size_t count) const {
+    const auto it = values_.find(key);
+    if (it == values_.end()) Throw("{}: missing key '{}'", path_, key);
+    if (it->second.size() != count) {
+      Throw("{}: '{}' has {} values, expected {}", path_, key, it->second.size(), count);
+    }
+    return it->second;
+  }
+  Eigen::Matrix3d Matrix3(const std::string& key) const {
+    const auto& v = Get(key, 9);
+    return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(v.data());
+  }
+  Eigen::Vector3d Vector3(const std::string& key) const {
+    const auto& v = Get(key, 3);
+    return Eigen::Vector3d(v[0], v[1], v[2]);
+  }
+
+ private:
+  std::string path_;
+  std::map<std::string, std::vector<double>> values_;
+};
+
+// Files of `dir` with extension `ext`, by frame number (the file name's stem, all digits).
+std::map<frame_t, fs::path> NumberedFiles(const fs::path& dir, const std::string& ext) {
+  std::map<frame_t, fs::path> files;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (!entry.is_regular_file() || entry.path().extension() != ext) continue;
+    const std::string stem = entry.path().stem().string();
+    if (stem.empty() || stem.size() > 18 ||
+        stem.find_first_not_of("0123456789") != std::string::npos) {
+      Throw("{}: file name is not a frame number", entry.path().string());
+    }
+    files[std::stoll(stem)] = entry.path();
+  }
+  return files;
+}
+
+double TimeOfFrame(const std::vector<double>& times, frame_t frame, const std::string& path) {
+  if (frame < 0 || frame >= static_cast<frame_t>(times.size())) {
+    Throw("{}: no timestamp for frame {} (the file has {} lines)", path, frame, times.size());
+  }
+  return times[static_cast<size_t>(frame)];
+}
+
+// Standard normal deviate by Box-Muller from 53-bit uniforms: the same on every platform.
+double Normal(std::mt19937_64& rng) {
+  constexpr double kScale = 1.0 / 9007199254740992.0;                   // 2^-53
+  const double u1 = (static_cast<double>(rng() >> 11) + 1.0) * kScale;  // (0, 1]
+  const double u2 = static_cast<double>(rng() >> 11) * kScale;          // [0, 1)
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+}
+
+// The consumer-GPS error model of kitti.h applied to `truth` (positions only).
+PositionTrack SimulateGnss(const PositionTrack& truth, double sigma_m, uint64_t seed) {
+  constexpr double kTimeConstantS = 60.0;
+  const double bias_fraction = 0.9;
+  const double white_fraction = std::sqrt(1.0 - bias_fraction * bias_fraction);
+  const Eigen::Vector3d axis_scale(1.0, 1.0, 1.5);
+  std::mt19937_64 rng(seed);
+  Eigen::Vector3d bias = Eigen::Vector3d::Zero();
+  PositionTrack gnss;
+  gnss.source = "simulated GNSS";
+  for (size_t k = 0; k < truth.samples.size(); ++k) {
+    const PositionSample& t = truth.samples[k];
+    const double decay =
+        k == 0 ? 0.0
+               : std::exp(-(t.timestamp_s - truth.samples[k - 1].timestamp_s) / kTimeConstantS);
+    Eigen::Vector3d error;
+    for (int axis = 0; axis < 3; ++axis) {
+      const double sigma_bias = bias_fraction * sigma_m * axis_scale[axis];
+      bias[axis] = decay * bias[axis] + sigma_bias * std::sqrt(1.0 - decay * decay) * Normal(rng);
+      error[axis] = bias[axis] + white_fraction * sigma_m * axis_scale[axis] * Normal(rng);
+    }
+    PositionSample sample;
+    sample.timestamp_s = t.timestamp_s;
+    sample.position = EnuFrame(t.position).ToGeodetic(error);
+    gnss.samples.push_back(sample);
+  }
+  return gnss;
+}
+
+std::string DefaultName(const fs::path& raw_dir, int camera) {
+  const std::string base = raw_dir.filename().string();
+  static const std::regex kPattern(R"((\d{4}_\d{2}_\d{2})_drive_(\d+)(_sync|_extract)?)");
+  std::smatch match;
+  if (std::regex_match(base, match, kPattern)) {
+    return "kitti_" + match[1].str() + "_" + match[2].str() + "_cam" + std::to_string(camera);
+  }
+  return "kitti_" + base + "_cam" + std::to_string(camera);
+}
+
+}  // namespace
+
+void KittiImportOptions::Check() const {
+  EPILOC_CHECK(!raw_drive_dir.empty(), "KITTI import: raw_drive_dir is empty");
+  EPILOC_CHECK(camera >= 0 && camera <= 3, "KITTI import: camera {} is not in 0..3", camera);
+  EPILOC_CHECK(start >= 0, "KITTI import: start {} is negative", start);
+  EPILOC_CHECK(stop == -1 || stop > start, "KITTI import: stop {} must be -1 or > start {}", stop,
+               start);
+  EPILOC_CHECK(step >= 1, "KITTI import: step {} must be >= 1", step);
+  EPILOC_CHECK(std::isfinite(gps_noise_sigma_m) && gps_noise_sigma_m >= 0,
+               "KITTI import: gps_noise_sigma_m {} must be >= 0", gps_noise_sigma_m);
+}
+
+Eigen::Matrix3d EnuFromImu(double roll_rad, double pitch_rad, double yaw_rad) {
+  return (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+std::vector<OxtsRecord> ReadKittiOxts(const std::string& oxts_dir) {
+  const fs::path data = fs::path(oxts_dir) / "data";
+  if (!fs::is_directory(data)) Throw("{}: OXTS data folder not found", data.string());
+  const std::string times_path = (fs::path(oxts_dir) / "timestamps.txt").string();
+  const std::vector<double> times = ReadTimestamps(times_path);
+  std::vector<OxtsRecord> records;
+  for (const auto& [frame, path] : NumberedFiles(data, ".txt")) {
+    std::ifstream in(path);
+    if (!in) Throw("{}: cannot open file", path.string());
+    OxtsRecord r;
+    r.frame = frame;
+    std::string token;
+    while (in >> token) r.values.push_back(ParseDouble(token, Where(path.string(), 1)));
+    if (r.values.size() != 30) {
+      Throw("{}: expected 30 OXTS values, found {}", Where(path.string(), 1), r.values.size());
+    }
+    r.position = {r.values[0], r.values[1], r.values[2]};
+    CheckGeodetic(r.position, Where(path.string(), 1));
+    r.roll_rad = r.values[3];
+    r.pitch_rad = r.values[4];
+    r.yaw_rad = r.values[5];
+    r.timestamp_s = TimeOfFrame(times, frame, times_path);
+    if (!records.empty() && r.timestamp_s <= records.back().timestamp_s) {
+      Throw("{}: timestamp of frame {} is not after that of frame {}", Where(times_path, frame + 1),
+            frame, records.back().frame);
+    }
+    records.push_back(std::move(r));
+  }
+  if (records.empty()) Throw("{}: no OXTS records", data.string());
+  return records;
+}
+
+Drive ImportKitti(const KittiImportOptions& options) {
+  options.Check();
+  fs::path raw = fs::absolute(options.raw_drive_dir).lexically_normal();
+  if (raw.filename().empty()) raw = raw.parent_path();
+  if (!fs::is_directory(raw)) Throw("{}: KITTI drive folder not found", raw.string());
+  const fs::path calib_dir = raw.parent_path();
+  const std::string n = "0" + std::to_string(options.camera);
+
+  const CalibFile cam_to_cam((calib_dir / "calib_cam_to_cam.txt").string());
+  const CalibFile velo_to_cam((calib_dir / "calib_velo_to_cam.txt").string());
+  const CalibFile imu_to_velo((calib_dir / "calib_imu_to_velo.txt").string());
+  const auto& p = cam_to_cam.Get("P_rect_" + n, 12);
+  const auto& size = cam_to_cam.Get("S_rect_" + n, 2);
+  const Eigen::Matrix3d rect0_from_cam0 = cam_to_cam.Matrix3("R_rect_00");
+
+  Drive drive;
+  drive.name = options.name.empty() ? DefaultName(raw, options.camera) : options.name;
+  drive.colour = options.camera >= 2;
+  drive.camera.width = static_cast<int>(std::lround(size[0]));
+  drive.camera.height = static_cast<int>(std::lround(size[1]));
+  drive.camera.fx = p[0];
+  drive.camera.cx = p[2];
+  drive.camera.fy = p[5];
+  drive.camera.cy = p[6];
+  drive.camera.Check((calib_dir / "calib_cam_to_cam.txt").string() + ": P_rect_" + n);
+
+  // Camera N's centre in rectified cam0 coordinates: P = K [I | t], centre = -t.
+  const Eigen::Vector3d center_in_rect0 =
+      -drive.camera.K().inverse() * Eigen::Vector3d(p[3], p[7], p[11]);
+  const Rigid3d velo_from_imu =
+      Rigid3d::FromMatrix(imu_to_velo.Matrix3("R"), imu_to_velo.Vector3("T"));
+  const Rigid3d cam0_from_velo =
+      Rigid3d::FromMatrix(velo_to_cam.Matrix3("R"), velo_to_cam.Vector3("T"));
+  const Rigid3d rect0_from_imu = Rigid3d::FromMatrix(rect0_from_cam0, Eigen::Vector3d::Zero()) *
+                                 cam0_from_velo * velo_from_imu;
+  const Rigid3d imu_from_rect0 = rect0_from_imu.Inverse();
+  const Rigid3d imu_from_velo = velo_from_imu.Inverse();
+  const Eigen::Vector3d center_in_imu = imu_from_rect0 * center_in_rect0;
+
+  // Frames.
+  const fs::path image_dir = raw / ("image_" + n);
+  if (!fs::is_directory(image_dir / "data")) {
+    Throw("{}: images of camera {} not found", (image_dir / "data").string(), options.camera);
+  }
+  const std::string image_times_path = (image_dir / "timestamps.txt").string();
+  const std::vector<double> image_times = ReadTimestamps(image_times_path);
+  const auto in_span = [&](frame_t f) {
+    return f >= options.start && (options.stop < 0 || f < options.stop);
+  };
+  for (const auto& [frame, path] : NumberedFiles(image_dir / "data", ".png")) {
+    if (!in_span(frame) || (frame - options.start) % options.step != 0) continue;
+    drive.frames.push_back(
+        {frame, TimeOfFrame(image_times, frame, image_times_path), path.string()});
+  }
+  if (drive.frames.empty()) {
+    Throw("{}: no frames in the selection [{}, {}) step {}", (image_dir / "data").string(),
+          options.start, options.stop, options.step);
+  }
+  FrameReader(drive).ReadGrey(0);  // the images must have the rectified size
+
+  // Ground truth: the camera track at the OXTS samples of the span.
+  const std::vector<OxtsRecord> oxts = ReadKittiOxts((raw / "oxts").string());
+  PositionTrack imu_track;  // orientation field holds enu_from_imu
+  PositionTrack truth;
+  truth.source = (raw / "oxts").string();
+  for (const auto& r : oxts) {
+    const Eigen::Matrix3d enu_from_imu = EnuFromImu(r.roll_rad, r.pitch_rad, r.yaw_rad);
+    PositionSample imu;
+    imu.timestamp_s = r.timestamp_s;
+    imu.position = r.position;
+    imu.enu_from_cam = Eigen::Quaterniond(enu_from_imu);
+    imu.frame = r.frame;
+    imu_track.samples.push_back(imu);
+    if (!in_span(r.frame)) continue;
+    PositionSample cam;
+    cam.timestamp_s = r.timestamp_s;
+    cam.position = EnuFrame(r.position).ToGeodetic(enu_from_imu * center_in_imu);
+    cam.enu_from_cam =
+        (EnuToEnuRotation(cam.position, r.position) * *imu.enu_from_cam * imu_from_rect0.rotation)
+            .normalized();
+    cam.frame = r.frame;
+    truth.samples.push_back(cam);
+  }
+  if (truth.samples.empty()) Throw("{}: no OXTS record in the selected span", truth.source);
+  if (options.gps_noise_sigma_m > 0) {
+    drive.gnss = SimulateGnss(truth, options.gps_noise_sigma_m, options.seed);
+  } else {
+    drive.gnss.source = truth.source;
+    for (const auto& s : truth.samples) {
+      PositionSample g;
+      g.timestamp_s = s.timestamp_s;
+      g.position = s.position;
+      drive.gnss.samples.push_back(g);
+    }
+  }
+  drive.ground_truth = truth;
+
+  // LiDAR scans present in the span, posed by the IMU track at the scan time.
+  const fs::path velo_dir = raw / "velodyne_points";
+  if (fs::is_directory(velo_dir / "data")) {
+    const std::string velo_times_path = (velo_dir / "timestamps.txt").string();
+    const std::vector<double> velo_times = ReadTimestamps(velo_times_path);
+    for (const auto& [frame, path] : NumberedFiles(velo_dir / "data", ".bin")) {
+      if (!in_span(frame)) continue;
+      LidarScan scan;
+      scan.scan = frame;
+      scan.timestamp_s = TimeOfFrame(velo_times, frame, velo_times_path);
+      scan.path = path.string();
+      scan.format = "kitti_bin";
+      const auto imu = imu_track.Interpolate(scan.timestamp_s, 1.0);
+      if (!imu) {
+        Throw("{}: no OXTS pose within 1 s of scan {}", Where(velo_times_path, frame + 1), frame);
+      }
+      scan.sensor_position =
+          EnuFrame(imu->position).ToGeodetic(*imu->enu_from_cam * imu_from_velo.translation);
+      scan.enu_from_sensor = (EnuToEnuRotation(scan.sensor_position, imu->position) *
+                              *imu->enu_from_cam * imu_from_velo.rotation)
+                                 .normalized();
+      drive.lidar.push_back(scan);
+    }
+  }
+
+  spdlog::info("{}: {} frames, {} positions, {} LiDAR scans", drive.name, drive.frames.size(),
+               truth.samples.size(), drive.lidar.size());
+  if (!options.out_dir.empty()) {
+    drive.dir = options.out_dir;
+    WriteDrive(drive, options.out_dir);
+  }
+  return drive;
+}
+
+}  // namespace epiloc
