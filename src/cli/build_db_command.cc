@@ -4,7 +4,6 @@
 #include "epiloc/cli/commands.h"
 #include "epiloc/core/progress.h"
 #include "epiloc/survey/build_db.h"
-#include "epiloc/survey/db_info.h"
 
 namespace epiloc {
 
@@ -46,18 +45,6 @@ int RunBuildDb(int argc, char** argv) {
       static_cast<long long>(summary.frames_already_present),
       static_cast<long long>(summary.frames_without_position), summary.seconds,
       summary.seconds > 0 ? summary.frames_added / summary.seconds : 0.0);
-  return kExitOk;
-}
-
-int RunInfo(int argc, char** argv) {
-  CLI::App app("Summarise a route database: drives, frames, route length, features, schema.",
-               "info");
-  CommonFlags flags;
-  AddCommonFlags(app, flags);
-  std::string db_path;
-  app.add_option("--db", db_path, "Route database (SQLite)")->required();
-  if (auto code = Parse(app, flags, argc, argv)) return *code;
-  std::printf("%s", FormatDatabaseInfo(SummarizeDatabase(db_path)).c_str());
   return kExitOk;
 }
 

@@ -1,0 +1,272 @@
+// Bad input to `epiloc build-db`, end to end through the binary: one line on stderr naming the
+// file (and line), exit code 1, and an existing database left exactly as it was.
+#include <sqlite3.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdlib>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace epiloc {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+struct RunResult {
+  int exit_code = -1;
+  std::string stderr_text;
+};
+
+RunResult RunEpiloc(const std::string& args) {
+  const std::string command = fmt::format("{} {} 2>&1 1>/dev/null", EPILOC_BINARY, args);
+  RunResult result;
+  FILE* pipe = popen(command.c_str(), "r");
+  std::array<char, 4096> buffer{};
+  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) result.stderr_text += buffer.data();
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+int NumLines(const std::string& text) {
+  int lines = 0;
+  for (const char c : text) lines += c == '\n';
+  return lines;
+}
+
+void WriteText(const fs::path& path, const std::string& text) {
+  std::ofstream(path) << text;
+}
+
+// Everything a test needs to compare a database before and after: row counts and integrity.
+std::string Snapshot(const fs::path& db_path) {
+  sqlite3* db = nullptr;
+  EXPECT_EQ(sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK);
+  std::string text;
+  for (const char* sql :
+       {"SELECT count(*) FROM frames", "SELECT group_concat(name) FROM drives",
+        "SELECT count(*) FROM keypoints", "SELECT count(*) FROM route_points",
+        "SELECT count(*) FROM cameras", "SELECT group_concat(key || '=' || value) FROM meta",
+        "PRAGMA integrity_check"}) {
+    sqlite3_stmt* stmt = nullptr;
+    sqlite3_prepare_v2(db, sql, -1, &stmt, nullptr);
+    if (sqlite3_step(stmt) == SQLITE_ROW && sqlite3_column_text(stmt, 0) != nullptr) {
+      text += reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0));
+    }
+    text += ";";
+    sqlite3_finalize(stmt);
+  }
+  sqlite3_close(db);
+  return text;
+}
+
+class BuildDbErrors : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() /
+            fmt::format("epiloc_build_db_errors_{}_{}", ::getpid(),
+                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(root_);
+    fs::create_directories(root_);
+    db_ = root_ / "route.sqlite";
+    MakeDrive(root_ / "good", "good");
+    const RunResult result = RunEpiloc(
+        fmt::format("build-db --quiet --drive {} --db {}", (root_ / "good").string(), db_.string()));
+    ASSERT_EQ(result.exit_code, 0) << result.stderr_text;
+    before_ = Snapshot(db_);
+  }
+  void TearDown() override {
+    if (std::getenv("EPILOC_KEEP_TEST_FILES") == nullptr) fs::remove_all(root_);
+  }
+
+  // A drive of kFrames textured 320x240 frames driving north at 5 m/s with GNSS at 10 Hz.
+  static void MakeDrive(const fs::path& dir, const std::string& name) {
+    fs::create_directories(dir / "images");
+    std::mt19937 rng(42);
+    std::uniform_int_distribution<int> x(0, 319), y(0, 239), r(2, 10), v(0, 255);
+    std::string frames = "frame,timestamp_s,image\n";
+    for (int i = 0; i < kFrames; ++i) {
+      cv::Mat image(240, 320, CV_8UC1, cv::Scalar(128));
+      for (int k = 0; k < 400; ++k) {
+        cv::circle(image, cv::Point(x(rng), y(rng)), r(rng), cv::Scalar(v(rng)), cv::FILLED);
+      }
+      const std::string file = fmt::format("images/{:04d}.png", i);
+      cv::imwrite((dir / file).string(), image);
+      frames += fmt::format("{},{:.3f},{}\n", i, 100.0 + 0.1 * i, file);
+    }
+    WriteText(dir / "frames.csv", frames);
+    std::string gnss = "timestamp_s,lat_deg,lon_deg,alt_m\n";
+    for (int i = 0; i < kFrames + 2; ++i) {
+      gnss += fmt::format("{:.3f},{:.9f},8.4,110.0\n", 99.95 + 0.1 * i, 49.0 + 0.5 * i / 111200.0);
+    }
+    WriteText(dir / "gnss.csv", gnss);
+    WriteManifest(dir, name, R"("fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240)",
+                  R"({"file": "gnss.csv", "format": "csv"})");
+  }
+
+  static void WriteManifest(const fs::path& dir,
+                            const std::string& name,
+                            const std::string& camera,
+                            const std::string& gnss) {
+    WriteText(dir / "drive.json",
+              fmt::format(R"({{"epiloc_drive": 1, "name": "{}", "camera": {{{}}},
+  "frames": {{"csv": "frames.csv"}}, "gnss": {}, "max_gap_s": 0.5}})",
+                          name, camera, gnss));
+  }
+
+  // Copies the good drive under a new name, for one test to break.
+  fs::path CopyDrive(const std::string& name) {
+    const fs::path dir = root_ / name;
+    fs::copy(root_ / "good", dir, fs::copy_options::recursive);
+    std::ifstream in(dir / "drive.json");
+    std::string manifest((std::istreambuf_iterator<char>(in)), {});
+    manifest.replace(manifest.find("\"good\""), 6, "\"" + name + "\"");
+    WriteText(dir / "drive.json", manifest);
+    return dir;
+  }
+
+  static void ReplaceLine(const fs::path& file, int line_number, const std::string& text) {
+    std::ifstream in(file);
+    std::string line, out;
+    for (int n = 1; std::getline(in, line); ++n) out += (n == line_number ? text : line) + "\n";
+    in.close();
+    WriteText(file, out);
+  }
+
+  // Runs build-db on `drive` into the shared database and checks the failure contract.
+  void ExpectFailure(const fs::path& drive, const std::string& expected_in_message) {
+    const RunResult result = RunEpiloc(
+        fmt::format("build-db --quiet --drive {} --db {}", drive.string(), db_.string()));
+    EXPECT_EQ(result.exit_code, 1) << result.stderr_text;
+    EXPECT_EQ(NumLines(result.stderr_text), 1) << result.stderr_text;
+    EXPECT_THAT(result.stderr_text, HasSubstr("epiloc build-db: error: "));
+    EXPECT_THAT(result.stderr_text, HasSubstr(expected_in_message));
+    EXPECT_EQ(Snapshot(db_), before_) << "the database changed";
+  }
+
+  static constexpr int kFrames = 6;
+  fs::path root_;
+  fs::path db_;
+  std::string before_;
+};
+
+TEST_F(BuildDbErrors, MissingImage) {
+  const fs::path drive = CopyDrive("missing_image");
+  fs::remove(drive / "images/0003.png");
+  ExpectFailure(drive, "0003.png");
+}
+
+TEST_F(BuildDbErrors, CorruptImageFoundHalfWayIsUndone) {
+  const fs::path drive = CopyDrive("corrupt_image");
+  WriteText(drive / "images/0004.png", "this is not a PNG file");
+  ExpectFailure(drive, "0004.png");
+}
+
+TEST_F(BuildDbErrors, MalformedCsvLine) {
+  const fs::path drive = CopyDrive("bad_csv");
+  ReplaceLine(drive / "gnss.csv", 4, "100.25,forty-nine,8.4,110.0");
+  ExpectFailure(drive, "gnss.csv:4");
+}
+
+TEST_F(BuildDbErrors, MalformedNmeaLine) {
+  const fs::path drive = CopyDrive("bad_nmea");
+  WriteText(drive / "gnss.nmea",
+            "$GPRMC,000140.00,A,4900.0000,N,00824.0000,E,0.0,0.0,010170,,,A*5F\n"
+            "$GPGGA,000140.00,4900.0000,N,00824.0000,E,1,08,0.9,110.0,M,47.0,M,,*FF\n");
+  WriteManifest(drive, "bad_nmea",
+                R"("fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240)",
+                R"({"file": "gnss.nmea", "format": "nmea"})");
+  ExpectFailure(drive, "gnss.nmea:2");
+}
+
+TEST_F(BuildDbErrors, TimestampsGoingBackwards) {
+  const fs::path drive = CopyDrive("backwards");
+  ReplaceLine(drive / "frames.csv", 5, "3,100.05,images/0003.png");
+  ExpectFailure(drive, "frames.csv:5");
+}
+
+TEST_F(BuildDbErrors, CalibrationMissing) {
+  const fs::path drive = CopyDrive("no_fx");
+  WriteManifest(drive, "no_fx", R"("fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240)",
+                R"({"file": "gnss.csv", "format": "csv"})");
+  ExpectFailure(drive, "drive.json");
+}
+
+TEST_F(BuildDbErrors, CalibrationInconsistentWithImageSize) {
+  const fs::path drive = CopyDrive("wrong_size");
+  WriteManifest(drive, "wrong_size",
+                R"("fx": 600, "fy": 600, "cx": 320, "cy": 240, "width": 640, "height": 480)",
+                R"({"file": "gnss.csv", "format": "csv"})");
+  ExpectFailure(drive, "0000.png");
+}
+
+TEST_F(BuildDbErrors, LatitudeOutOfRange) {
+  const fs::path drive = CopyDrive("bad_lat");
+  ReplaceLine(drive / "gnss.csv", 3, "100.15,123.0,8.4,110.0");
+  ExpectFailure(drive, "gnss.csv:3");
+}
+
+TEST_F(BuildDbErrors, DatabaseFromNewerSchema) {
+  const fs::path newer = root_ / "newer.sqlite";
+  fs::copy_file(db_, newer);
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(newer.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "PRAGMA user_version = 999", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+  const RunResult result = RunEpiloc(fmt::format("build-db --quiet --drive {} --db {}",
+                                                 CopyDrive("other").string(), newer.string()));
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_EQ(NumLines(result.stderr_text), 1) << result.stderr_text;
+  EXPECT_THAT(result.stderr_text, HasSubstr("newer.sqlite"));
+  EXPECT_THAT(result.stderr_text, HasSubstr("newer than this epiloc"));
+}
+
+TEST_F(BuildDbErrors, LockedDatabase) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(db_.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr), SQLITE_OK);
+  const RunResult result = RunEpiloc(fmt::format("build-db --quiet --drive {} --db {}",
+                                                 CopyDrive("other").string(), db_.string()));
+  sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
+  sqlite3_close(db);
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_EQ(NumLines(result.stderr_text), 1) << result.stderr_text;
+  EXPECT_THAT(result.stderr_text, HasSubstr("route.sqlite"));
+  EXPECT_THAT(result.stderr_text, HasSubstr("locked"));
+  EXPECT_EQ(Snapshot(db_), before_);
+}
+
+TEST_F(BuildDbErrors, UnknownOptionIsAUsageError) {
+  const RunResult result = RunEpiloc(fmt::format("build-db --quiet --drive {} --db {} --sift-foo 3",
+                                                 CopyDrive("other").string(), db_.string()));
+  EXPECT_EQ(result.exit_code, 2);
+  EXPECT_EQ(NumLines(result.stderr_text), 1) << result.stderr_text;
+  EXPECT_THAT(result.stderr_text, HasSubstr("--sift-foo"));
+  EXPECT_EQ(Snapshot(db_), before_);
+}
+
+TEST_F(BuildDbErrors, SecondDriveAndRerunAddNoDuplicates) {
+  const fs::path drive = CopyDrive("second");
+  const std::string args =
+      fmt::format("build-db --quiet --drive {} --db {}", drive.string(), db_.string());
+  ASSERT_EQ(RunEpiloc(args).exit_code, 0);
+  const std::string after_second = Snapshot(db_);
+  EXPECT_NE(after_second, before_);
+  EXPECT_THAT(after_second, HasSubstr(fmt::format("{};good,second;", 2 * kFrames)));
+  ASSERT_EQ(RunEpiloc(args).exit_code, 0);
+  EXPECT_EQ(Snapshot(db_), after_second);
+}
+
+}  // namespace
+}  // namespace epiloc
