@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <tuple>
 
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -62,6 +63,18 @@ FeatureSet ExtractSift(const cv::Mat& image, const SiftOptions& options) {
   cv::Mat descriptors;
   sift->detectAndCompute(grey, cv::noArray(), keypoints, descriptors);
 
+  // Strongest first, so a consumer can take the best N features as a prefix of the rows.
+  std::vector<int> order(keypoints.size());
+  std::iota(order.begin(), order.end(), 0);
+  // Ties (one location with two orientations) broken by position and angle, so the order does
+  // not depend on how many features were requested.
+  std::sort(order.begin(), order.end(), [&keypoints](int a, int b) {
+    const cv::KeyPoint& ka = keypoints[a];
+    const cv::KeyPoint& kb = keypoints[b];
+    return std::make_tuple(-ka.response, ka.pt.y, ka.pt.x, ka.size, ka.angle) <
+           std::make_tuple(-kb.response, kb.pt.y, kb.pt.x, kb.size, kb.angle);
+  });
+
   FeatureSet features;
   const int n = static_cast<int>(keypoints.size());
   features.keypoints.resize(n, 4);
@@ -69,7 +82,7 @@ FeatureSet ExtractSift(const cv::Mat& image, const SiftOptions& options) {
   // Pixel centres sit at integer coordinates in both images, so the downscale maps
   // x -> (x + 0.5) / scale - 0.5.
   for (int i = 0; i < n; ++i) {
-    const cv::KeyPoint& kp = keypoints[i];
+    const cv::KeyPoint& kp = keypoints[order[i]];
     features.keypoints(i, 0) = static_cast<float>((kp.pt.x + 0.5) / scale - 0.5);
     features.keypoints(i, 1) = static_cast<float>((kp.pt.y + 0.5) / scale - 0.5);
     features.keypoints(i, 2) = static_cast<float>(kp.size / scale);
@@ -80,7 +93,7 @@ FeatureSet ExtractSift(const cv::Mat& image, const SiftOptions& options) {
                  "sift: unexpected descriptor type {} with {} columns", descriptors.type(),
                  descriptors.cols);
     for (int i = 0; i < n; ++i) {
-      std::copy(descriptors.ptr<uint8_t>(i), descriptors.ptr<uint8_t>(i) + 128,
+      std::copy(descriptors.ptr<uint8_t>(order[i]), descriptors.ptr<uint8_t>(order[i]) + 128,
                 features.descriptors.row(i).data());
     }
   }

@@ -71,6 +71,11 @@ TEST(Sift, KeepsStrongestUpToLimitAndFillsDescriptors) {
   EXPECT_GE(limited.size(), 200);
   EXPECT_LE(limited.size(), 210);
   EXPECT_EQ(limited.descriptors.rows(), limited.keypoints.rows());
+  // Strongest first: the limited set is the prefix of the full set (same detections).
+  for (int i = 0; i < 50; ++i) {
+    EXPECT_EQ(limited.keypoints.row(i), all.keypoints.row(i)) << "row " << i;
+    EXPECT_EQ(limited.descriptors.row(i), all.descriptors.row(i)) << "row " << i;
+  }
   for (int i = 0; i < limited.size(); ++i) {
     EXPECT_GT(limited.descriptors.row(i).cast<int>().sum(), 0);
     EXPECT_GE(limited.keypoints(i, 0), -0.5f);

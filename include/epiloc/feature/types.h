@@ -14,6 +14,8 @@ using FeatureKeypoints = Eigen::Matrix<float, Eigen::Dynamic, 4, Eigen::RowMajor
 // One row of 128 bytes per feature (SIFT, OpenCV's uint8 descriptor).
 using FeatureDescriptors = Eigen::Matrix<uint8_t, Eigen::Dynamic, 128, Eigen::RowMajor>;
 
+// Rows of both are in the same order: decreasing detector response (strongest first), so the
+// first N rows are the N strongest features.
 struct FeatureSet {
   FeatureKeypoints keypoints;
   FeatureDescriptors descriptors;
