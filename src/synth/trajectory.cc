@@ -1,0 +1,296 @@
+#include "epiloc/synth/trajectory.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+constexpr double kStepM = 0.05;  // resolution of the speed profile
+
+// world_from_cam rotation for a camera looking along yaw (from east, counter-clockwise) and
+// pitch (up positive): columns are the camera's right, down and forward axes.
+Eigen::Matrix3d WorldFromCamRotation(double yaw, double pitch) {
+  const Eigen::Vector3d forward(std::cos(pitch) * std::cos(yaw), std::cos(pitch) * std::sin(yaw),
+                                std::sin(pitch));
+  const Eigen::Vector3d right(std::sin(yaw), -std::cos(yaw), 0.0);
+  Eigen::Matrix3d r;
+  r.col(0) = right;
+  r.col(1) = forward.cross(right);
+  r.col(2) = forward;
+  return r;
+}
+
+Eigen::Quaterniond SmallRotation(double sigma_rad, Rng& rng) {
+  const Eigen::Vector3d v(rng.Normal(), rng.Normal(), rng.Normal());
+  const Eigen::Vector3d axis_angle = sigma_rad * v;
+  if (axis_angle.norm() < 1e-15) return Eigen::Quaterniond::Identity();
+  return Eigen::Quaterniond(Eigen::AngleAxisd(axis_angle.norm(), axis_angle.normalized()));
+}
+
+}  // namespace
+
+void GnssOptions::Check(const std::string& where) const {
+  EPILOC_CHECK(sigma_m >= 0 && std::isfinite(sigma_m), "{}: gnss sigma_m must not be negative",
+               where);
+  EPILOC_CHECK(up_factor >= 0, "{}: gnss up_factor must not be negative", where);
+  EPILOC_CHECK(tau_s > 0, "{}: gnss tau_s must be positive", where);
+  EPILOC_CHECK(bias_fraction >= 0 && bias_fraction <= 1, "{}: gnss bias_fraction must be in [0, 1]",
+               where);
+  EPILOC_CHECK(rate_hz > 0, "{}: gnss rate_hz must be positive", where);
+  EPILOC_CHECK(orientation_sigma_deg >= 0, "{}: gnss orientation_sigma_deg must not be negative",
+               where);
+}
+
+DriveOptions DriveOptions::Survey() {
+  DriveOptions o;
+  o.name = "synth_survey";
+  o.camera.width = 800;
+  o.camera.height = 400;
+  o.camera.fx = o.camera.fy = 600.0;
+  o.camera.cx = 399.5;
+  o.camera.cy = 199.5;
+  o.camera_height_m = 1.6;
+  o.speed_mps = 8.0;
+  o.frame_rate_hz = 10.0;
+  o.start_time_s = 1700000000.0;
+  o.gnss.sigma_m = 0.3;
+  o.gnss.rate_hz = 10.0;
+  o.gnss.with_orientation = true;
+  o.gnss.orientation_sigma_deg = 0.1;
+  o.max_gap_s = 0.5;
+  return o;
+}
+
+DriveOptions DriveOptions::Query() {
+  DriveOptions o;
+  o.name = "synth_query";
+  o.camera.width = 640;
+  o.camera.height = 360;
+  o.camera.fx = o.camera.fy = 500.0;
+  o.camera.cx = 319.5;
+  o.camera.cy = 179.5;
+  o.camera.distortion = {-0.08, 0.01, 0.0, 0.0, 0.0};
+  o.lateral_offset_m = 0.7;
+  o.camera_height_m = 1.5;
+  o.start_offset_m = 10.0;
+  o.end_offset_m = 10.0;
+  o.speed_mps = 6.0;
+  o.sections = {{0.55, 0.8, 10.0}};
+  o.stops = {{0.3, 2.0}};
+  o.frame_rate_hz = 15.0;
+  o.start_time_s = 1700000000.0 + 3 * 86400.0 + 5 * 3600.0;
+  o.wobble_yaw_deg = 0.5;
+  o.wobble_pitch_deg = 0.5;
+  o.exposure_s = 1.0 / 150.0;
+  o.render.noise_sigma = 2.0;
+  o.render.exposure_gain = 0.85;
+  o.gnss.sigma_m = 3.0;
+  o.gnss.rate_hz = 1.0;
+  o.max_gap_s = 1.5;
+  return o;
+}
+
+void DriveOptions::Check(const std::string& where) const {
+  EPILOC_CHECK(!name.empty(), "{}: name is empty", where);
+  camera.Check(where + ": camera");
+  EPILOC_CHECK(std::isfinite(lateral_offset_m) && std::abs(lateral_offset_m) < 3,
+               "{}: lateral_offset_m = {} must be within 3 m of the lane centre", where,
+               lateral_offset_m);
+  EPILOC_CHECK(camera_height_m > 0.3 && camera_height_m < 5,
+               "{}: camera_height_m must be in (0.3, 5)", where);
+  EPILOC_CHECK(start_offset_m >= 0 && end_offset_m >= 0, "{}: offsets must not be negative", where);
+  EPILOC_CHECK(speed_mps > 0, "{}: speed_mps must be positive", where);
+  for (const SpeedSection& s : sections) {
+    EPILOC_CHECK(s.from_fraction >= 0 && s.to_fraction <= 1 && s.from_fraction < s.to_fraction &&
+                     s.speed_mps > 0,
+                 "{}: speed section [{}, {}] at {} m/s is invalid", where, s.from_fraction,
+                 s.to_fraction, s.speed_mps);
+  }
+  for (const StopEvent& s : stops) {
+    EPILOC_CHECK(s.at_fraction > 0 && s.at_fraction < 1 && s.duration_s >= 0,
+                 "{}: stop at {} for {} s is invalid", where, s.at_fraction, s.duration_s);
+  }
+  EPILOC_CHECK(max_accel_mps2 > 0, "{}: max_accel_mps2 must be positive", where);
+  EPILOC_CHECK(frame_rate_hz > 0, "{}: frame_rate_hz must be positive", where);
+  EPILOC_CHECK(std::isfinite(start_time_s), "{}: start_time_s is not finite", where);
+  EPILOC_CHECK(std::abs(wobble_yaw_deg) < 10 && std::abs(wobble_pitch_deg) < 10,
+               "{}: wobble amplitudes must be below 10 deg", where);
+  EPILOC_CHECK(wobble_period_s > 0, "{}: wobble_period_s must be positive", where);
+  EPILOC_CHECK(exposure_s >= 0 && exposure_s < 1, "{}: exposure_s must be in [0, 1)", where);
+  EPILOC_CHECK(max_gap_s > 0, "{}: max_gap_s must be positive", where);
+  render.Check();
+  gnss.Check(where);
+}
+
+DrivePath::DrivePath(const World& world,
+                     const DriveOptions& options,
+                     double length_m,
+                     uint64_t seed)
+    : centreline_(world.centreline),
+      lane_offset_m_(world.RightLaneCentre() + options.lateral_offset_m),
+      road_height_m_(world.RoadHeight()),
+      options_(options) {
+  options.Check("drive " + options.name);
+  const double s0 = options.start_offset_m, s1 = length_m - options.end_offset_m;
+  EPILOC_CHECK(s1 - s0 >= 1.0, "drive {}: nothing left to drive ({} m to {} m)", options.name, s0,
+               s1);
+  const int n = static_cast<int>(std::ceil((s1 - s0) / kStepM)) + 1;
+  std::vector<double> s(n), v(n, options.speed_mps);
+  std::vector<double> dwell(n, 0.0);
+  for (int i = 0; i < n; ++i) s[i] = std::min(s1, s0 + i * kStepM);
+  const auto index_of = [&](double fraction) {
+    return std::clamp(static_cast<int>(std::lround(fraction * (s1 - s0) / kStepM)), 0, n - 1);
+  };
+  for (const SpeedSection& section : options.sections) {
+    for (int i = index_of(section.from_fraction); i <= index_of(section.to_fraction); ++i) {
+      v[i] = section.speed_mps;
+    }
+  }
+  for (const StopEvent& stop : options.stops) {
+    v[index_of(stop.at_fraction)] = 0.0;
+    dwell[index_of(stop.at_fraction)] += stop.duration_s;
+  }
+  // Limit accelerations both ways: v^2 changes by at most 2 a ds per step.
+  const double a2 = 2.0 * options.max_accel_mps2;
+  for (int i = 1; i < n; ++i)
+    v[i] = std::min(v[i], std::sqrt(v[i - 1] * v[i - 1] + a2 * (s[i] - s[i - 1])));
+  for (int i = n - 2; i >= 0; --i)
+    v[i] = std::min(v[i], std::sqrt(v[i + 1] * v[i + 1] + a2 * (s[i + 1] - s[i])));
+  double t = 0;
+  for (int i = 0; i < n; ++i) {
+    if (i > 0) t += 2.0 * (s[i] - s[i - 1]) / std::max(v[i] + v[i - 1], 1e-6);
+    times_.push_back(t);
+    s_.push_back(s[i]);
+    if (dwell[i] > 0) {
+      t += dwell[i];
+      times_.push_back(t);
+      s_.push_back(s[i]);
+    }
+  }
+  Rng rng(MixSeed(seed, 77));
+  for (double& p : phase_) p = rng.Uniform(0, 2 * M_PI);
+}
+
+std::vector<double> DrivePath::FrameTimes() const {
+  std::vector<double> out;
+  const double duration = times_.back();
+  for (int64_t i = 0; i / options_.frame_rate_hz <= duration + 1e-9; ++i) {
+    out.push_back(options_.start_time_s + i / options_.frame_rate_hz);
+  }
+  return out;
+}
+
+double DrivePath::SAt(double timestamp_s) const {
+  const double t = timestamp_s - options_.start_time_s;
+  if (t <= times_.front()) return s_.front();
+  if (t >= times_.back()) return s_.back();
+  const size_t i = std::upper_bound(times_.begin(), times_.end(), t) - times_.begin();
+  const double dt = times_[i] - times_[i - 1];
+  if (dt <= 0) return s_[i];
+  return s_[i - 1] + (s_[i] - s_[i - 1]) * (t - times_[i - 1]) / dt;
+}
+
+double DrivePath::TimeAtS(double s_m) const {
+  if (s_m <= s_.front()) return options_.start_time_s + times_.front();
+  if (s_m >= s_.back()) return options_.start_time_s + times_.back();
+  const size_t i = std::lower_bound(s_.begin(), s_.end(), s_m) - s_.begin();
+  const double ds = s_[i] - s_[i - 1];
+  const double f = ds > 0 ? (s_m - s_[i - 1]) / ds : 1.0;
+  return options_.start_time_s + times_[i - 1] + f * (times_[i] - times_[i - 1]);
+}
+
+Rigid3d DrivePath::CamFromWorld(double timestamp_s) const {
+  const double s = SAt(timestamp_s);
+  const double t = timestamp_s - options_.start_time_s;
+  const double w = 2 * M_PI / options_.wobble_period_s;
+  const double yaw_wobble =
+      options_.wobble_yaw_deg * kDeg *
+      (0.8 * std::sin(w * t + phase_[0]) + 0.2 * std::sin(2.7 * w * t + phase_[1]));
+  const double pitch_wobble =
+      options_.wobble_pitch_deg * kDeg *
+      (0.8 * std::sin(w / 0.63 * t + phase_[2]) + 0.2 * std::sin(3.1 * w * t + phase_[3]));
+  const double yaw = centreline_.YawAt(s) + options_.mount_yaw_deg * kDeg + yaw_wobble;
+  const double pitch = options_.mount_pitch_deg * kDeg + pitch_wobble;
+  const Eigen::Matrix3d world_from_cam = WorldFromCamRotation(yaw, pitch);
+  const Eigen::Vector2d p = centreline_.PointAt(s, lane_offset_m_);
+  const Eigen::Vector3d centre(p.x(), p.y(), road_height_m_ + options_.camera_height_m);
+  return Rigid3d::FromMatrix(world_from_cam.transpose(), -world_from_cam.transpose() * centre);
+}
+
+Rigid3d DrivePath::WorldFromSensorAtS(double s_m, double height_m) const {
+  const double yaw = centreline_.YawAt(s_m);
+  const Eigen::Vector2d p = centreline_.PointAt(s_m, lane_offset_m_);
+  return Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())),
+                 Eigen::Vector3d(p.x(), p.y(), road_height_m_ + height_m));
+}
+
+Eigen::Matrix3d LocalEnuFromWorldEnu(const EnuFrame& world_frame, const Geodetic& position) {
+  return world_frame.EnuFromLocalEnu(position).transpose();
+}
+
+PositionTrack SimulateGnss(const DrivePath& path,
+                           const EnuFrame& world_frame,
+                           const GnssOptions& options,
+                           uint64_t seed,
+                           const std::string& source) {
+  options.Check("gnss");
+  Rng rng(seed);
+  PositionTrack track;
+  track.source = source;
+  const double dt = 1.0 / options.rate_hz;
+  const double phi = std::exp(-dt / options.tau_s);
+  const Eigen::Vector3d scale(options.sigma_m, options.sigma_m,
+                              options.sigma_m * options.up_factor);
+  const double white = std::sqrt(1.0 - options.bias_fraction * options.bias_fraction);
+  Eigen::Vector3d bias(rng.Normal(), rng.Normal(), rng.Normal());  // in units of the bias sigma
+  for (int64_t k = 0;; ++k) {
+    const double t = path.start_time_s() + k * dt;
+    if (t > path.end_time_s() + 1e-9) break;
+    if (k > 0) {
+      for (int a = 0; a < 3; ++a) bias[a] = phi * bias[a] + std::sqrt(1 - phi * phi) * rng.Normal();
+    }
+    const Eigen::Vector3d noise(rng.Normal(), rng.Normal(), rng.Normal());
+    const Eigen::Vector3d error = scale.cwiseProduct(options.bias_fraction * bias + white * noise);
+    const Rigid3d cam_from_world = path.CamFromWorld(t);
+    const Eigen::Vector3d centre = cam_from_world.Inverse().translation;
+    PositionSample sample;
+    sample.timestamp_s = t;
+    sample.position = world_frame.ToGeodetic(centre + error);
+    if (options.with_orientation) {
+      const Eigen::Matrix3d enu_from_cam = LocalEnuFromWorldEnu(world_frame, sample.position) *
+                                           cam_from_world.rotation.toRotationMatrix().transpose();
+      sample.enu_from_cam = (SmallRotation(options.orientation_sigma_deg * kDeg, rng) *
+                             Eigen::Quaterniond(enu_from_cam))
+                                .normalized();
+    }
+    track.samples.push_back(sample);
+  }
+  return track;
+}
+
+PositionTrack GroundTruthTrack(const DrivePath& path,
+                               const EnuFrame& world_frame,
+                               const std::vector<double>& frame_times_s,
+                               const std::string& source) {
+  PositionTrack track;
+  track.source = source;
+  for (size_t i = 0; i < frame_times_s.size(); ++i) {
+    const Rigid3d cam_from_world = path.CamFromWorld(frame_times_s[i]);
+    const Rigid3d world_from_cam = cam_from_world.Inverse();
+    PositionSample sample;
+    sample.timestamp_s = frame_times_s[i];
+    sample.frame = static_cast<frame_t>(i);
+    sample.position = world_frame.ToGeodetic(world_from_cam.translation);
+    sample.enu_from_cam = Eigen::Quaterniond(LocalEnuFromWorldEnu(world_frame, sample.position) *
+                                             world_from_cam.rotation.toRotationMatrix())
+                              .normalized();
+    track.samples.push_back(sample);
+  }
+  return track;
+}
+
+}  // namespace epiloc

@@ -1,0 +1,202 @@
+#include "epiloc/synth/drive_gen.h"
+
+#include <cmath>
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "epiloc/core/error.h"
+#include "epiloc/core/hash.h"
+#include "epiloc/io/drive.h"
+
+namespace epiloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A small, fast data set: 40 m, few frames, coarse LiDAR.
+SynthOptions TinyOptions(uint64_t seed) {
+  SynthOptions o;
+  o.length_m = 40;
+  o.seed = seed;
+  o.world.margin_after_m = 40;
+  o.survey.frame_rate_hz = 1.0;
+  o.query.frame_rate_hz = 1.0;
+  o.query.start_offset_m = 5;
+  o.query.end_offset_m = 5;
+  o.lidar_options.scan_spacing_m = 20;
+  o.lidar_options.azimuth_step_deg = 1.0;
+  o.lidar_scan_files = true;
+  return o;
+}
+
+World SmallWorld() {
+  WorldOptions o;
+  o.length_m = 60;
+  o.margin_after_m = 20;
+  o.seed = 2;
+  return BuildWorld(o);
+}
+
+std::string TempDir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("epiloc_synth_" + name);
+  fs::remove_all(dir);
+  return dir.string();
+}
+
+TEST(Trajectory, GroundTruthMatchesTheRenderedPoses) {
+  const World world = SmallWorld();
+  const EnuFrame frame(world.origin());
+  for (const DriveOptions& drive : {DriveOptions::Survey(), DriveOptions::Query()}) {
+    const DrivePath path(world, drive, world.options.length_m, 3);
+    const std::vector<double> times = path.FrameTimes();
+    const PositionTrack truth = GroundTruthTrack(path, frame, times);
+    ASSERT_EQ(truth.samples.size(), times.size());
+    double max_position = 0, max_angle = 0;
+    for (size_t i = 0; i < times.size(); ++i) {
+      const PositionSample& sample = truth.samples[i];
+      EXPECT_EQ(sample.frame, static_cast<frame_t>(i));
+      const Rigid3d world_from_cam = path.CamFromWorld(times[i]).Inverse();
+      const Eigen::Vector3d centre = world_from_cam.translation;
+      max_position = std::max(max_position, (frame.ToEnu(sample.position) - centre).norm());
+      // The local ENU axes at the sample, measured in the world frame by stepping 1 m along them.
+      const EnuFrame local(sample.position);
+      Eigen::Matrix3d world_from_local;
+      for (int a = 0; a < 3; ++a) {
+        world_from_local.col(a) =
+            frame.ToEnu(local.ToGeodetic(Eigen::Vector3d::Unit(a))) - frame.ToEnu(sample.position);
+      }
+      const Eigen::Quaterniond expected(world_from_local.transpose() *
+                                        world_from_cam.rotation.toRotationMatrix());
+      max_angle = std::max(max_angle, RotationDifferenceDeg(*sample.enu_from_cam, expected));
+    }
+    std::printf("%s: %zu frames, position error %.2e m, orientation error %.2e deg\n",
+                drive.name.c_str(), times.size(), max_position, max_angle);
+    EXPECT_LT(max_position, 1e-3);
+    EXPECT_LT(max_angle, 1e-4);
+  }
+}
+
+TEST(Trajectory, SpeedProfileStopsAndSpeedsUp) {
+  const World world = SmallWorld();
+  DriveOptions drive = DriveOptions::Query();
+  // Long enough to reach 10 m/s (the centreline continues beyond the small world).
+  const DrivePath path(world, drive, 300.0, 3);
+  EXPECT_NEAR(path.start_s_m(), drive.start_offset_m, 1e-9);
+  EXPECT_NEAR(path.end_s_m(), 300.0 - drive.end_offset_m, 1e-9);
+  const double s_stop = drive.start_offset_m + 0.3 * (path.end_s_m() - path.start_s_m());
+  const double t_stop = path.TimeAtS(s_stop);
+  EXPECT_NEAR(path.SAt(t_stop + 1.0), s_stop, 0.05);  // still standing 1 s later
+  const double fast =
+      path.TimeAtS(drive.start_offset_m + 0.7 * (path.end_s_m() - path.start_s_m()));
+  EXPECT_NEAR(path.SAt(fast + 0.5) - path.SAt(fast - 0.5), 10.0, 0.5);
+  for (double t = path.start_time_s(); t < path.end_time_s(); t += 0.1) {
+    EXPECT_LE(path.SAt(t), path.SAt(t + 0.1) + 1e-12);
+  }
+}
+
+TEST(Trajectory, GnssErrorsFollowTheModel) {
+  const World world = SmallWorld();
+  const EnuFrame frame(world.origin());
+  DriveOptions drive = DriveOptions::Query();
+  const DrivePath path(world, drive, world.options.length_m, 3);
+  GnssOptions exact;
+  exact.sigma_m = 0;
+  for (const PositionSample& s : SimulateGnss(path, frame, exact, 1).samples) {
+    EXPECT_LT(
+        (frame.ToEnu(s.position) - path.CamFromWorld(s.timestamp_s).Inverse().translation).norm(),
+        1e-6);
+  }
+  GnssOptions gnss;
+  gnss.rate_hz = 20;
+  const PositionTrack a = SimulateGnss(path, frame, gnss, 1);
+  const PositionTrack b = SimulateGnss(path, frame, gnss, 1);
+  const PositionTrack c = SimulateGnss(path, frame, gnss, 2);
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  Eigen::Vector3d sum_sq = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < a.samples.size(); ++i) {
+    EXPECT_EQ(a.samples[i].position.lat_deg, b.samples[i].position.lat_deg);
+    EXPECT_NE(a.samples[i].position.lat_deg, c.samples[i].position.lat_deg);
+    const Eigen::Vector3d e = frame.ToEnu(a.samples[i].position) -
+                              path.CamFromWorld(a.samples[i].timestamp_s).Inverse().translation;
+    sum_sq += e.cwiseProduct(e);
+    if (i > 0) {
+      // Consecutive errors are strongly correlated (the bias), but not equal (white noise).
+      const Eigen::Vector3d prev =
+          frame.ToEnu(a.samples[i - 1].position) -
+          path.CamFromWorld(a.samples[i - 1].timestamp_s).Inverse().translation;
+      EXPECT_LT((e - prev).head<2>().norm(), 6 * std::sqrt(2 * 0.19) * gnss.sigma_m);
+      EXPECT_GT((e - prev).norm(), 1e-6);
+    }
+  }
+  const Eigen::Vector3d rms = (sum_sq / a.samples.size()).cwiseSqrt();
+  std::printf("GNSS rms error over %zu samples: E %.2f N %.2f U %.2f m\n", a.samples.size(),
+              rms.x(), rms.y(), rms.z());
+  EXPECT_LT(rms.head<2>().maxCoeff(), 5 * gnss.sigma_m);
+}
+
+TEST(GenerateSynthetic, WritesLoadableDrivesAndIsDeterministic) {
+  const std::string a = TempDir("a"), b = TempDir("b"), c = TempDir("c");
+  const SynthSummary summary = GenerateSynthetic(TinyOptions(5), a);
+  GenerateSynthetic(TinyOptions(5), b);
+  int64_t last_done = 0, last_total = 0;
+  GenerateSynthetic(TinyOptions(6), c, [&](int64_t done, int64_t total) {
+    EXPECT_GT(done, last_done);
+    last_done = done;
+    last_total = total;
+  });
+  EXPECT_EQ(last_done, last_total);
+  EXPECT_GT(summary.num_survey_frames, 3);
+  EXPECT_GT(summary.num_query_frames, 3);
+  EXPECT_GT(summary.num_lidar_points, 10000);
+  for (const char* file : {"world.json", "top_view.png", "lidar/map.ply", "lidar/scans.csv",
+                           "survey/images/000002.png", "query/images/000002.png", "survey/gnss.csv",
+                           "query/gnss.csv", "query/ground_truth.csv"}) {
+    ASSERT_TRUE(fs::exists(fs::path(a) / file)) << file;
+    EXPECT_EQ(HashFile((fs::path(a) / file).string()), HashFile((fs::path(b) / file).string()))
+        << file;
+  }
+  for (const char* file : {"survey/images/000002.png", "query/gnss.csv", "lidar/map.ply"}) {
+    EXPECT_NE(HashFile((fs::path(a) / file).string()), HashFile((fs::path(c) / file).string()))
+        << file;
+  }
+
+  const SynthOptions options = TinyOptions(5);
+  const Drive survey = LoadDrive((fs::path(a) / "survey").string());
+  const Drive query = LoadDrive((fs::path(a) / "query").string());
+  EXPECT_EQ(survey.camera, options.survey.camera);
+  EXPECT_EQ(query.camera, options.query.camera);
+  EXPECT_TRUE(query.camera.HasDistortion());
+  EXPECT_EQ(static_cast<int>(survey.frames.size()), summary.num_survey_frames);
+  EXPECT_EQ(static_cast<int>(query.frames.size()), summary.num_query_frames);
+  ASSERT_TRUE(query.ground_truth.has_value());
+  EXPECT_EQ(query.ground_truth->samples.size(), query.frames.size());
+  EXPECT_FALSE(query.gnss.samples.empty());
+  EXPECT_EQ(survey.lidar.size(), static_cast<size_t>(summary.num_lidar_scans));
+  EXPECT_TRUE(fs::exists(fs::path(a) / "survey" / survey.lidar[0].path));
+  // The stored ground truth is the pose the frames were rendered with.
+  const World world = BuildWorld(options.ResolvedWorldOptions());
+  const DrivePath path(world, options.query, options.length_m, MixSeed(options.seed, 101));
+  const EnuFrame frame(world.origin());
+  for (const PositionSample& s : query.ground_truth->samples) {
+    EXPECT_LT(
+        (frame.ToEnu(s.position) - path.CamFromWorld(s.timestamp_s).Inverse().translation).norm(),
+        1e-3);
+  }
+  for (const std::string& dir : {a, b, c}) fs::remove_all(dir);
+}
+
+TEST(GenerateSynthetic, OptionsAreChecked) {
+  SynthOptions o;
+  o.length_m = 5;
+  EXPECT_THROW(o.Check(), Error);
+  o = SynthOptions();
+  o.query.frame_rate_hz = 0;
+  EXPECT_THROW(o.Check(), Error);
+  o = SynthOptions();
+  o.query.camera.fx = -1;
+  EXPECT_THROW(GenerateSynthetic(o, TempDir("bad")), Error);
+}
+
+}  // namespace
+}  // namespace epiloc
