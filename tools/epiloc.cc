@@ -24,10 +24,14 @@ void PrintUsage() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2 || std::strcmp(argv[1], "help") == 0 || std::strcmp(argv[1], "--help") == 0 ||
+  if (argc < 2) {
+    std::fprintf(stderr, "epiloc: no command given (see 'epiloc help')\n");
+    return epiloc::kExitUsage;
+  }
+  if (std::strcmp(argv[1], "help") == 0 || std::strcmp(argv[1], "--help") == 0 ||
       std::strcmp(argv[1], "-h") == 0) {
     PrintUsage();
-    return argc < 2 ? epiloc::kExitUsage : epiloc::kExitOk;
+    return epiloc::kExitOk;
   }
   if (std::strcmp(argv[1], "--version") == 0 || std::strcmp(argv[1], "version") == 0) {
     std::printf("epiloc %s\n", EPILOC_VERSION);

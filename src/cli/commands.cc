@@ -25,9 +25,13 @@ size_t EditDistance(const std::string& a, const std::string& b) {
 
 const std::vector<Command>& Commands() {
   static const std::vector<Command> commands = {
+      {"synth", "Generate a synthetic street: survey + query drives, LiDAR map, exact truth",
+       RunSynth},
       {"import-kitti", "Convert a KITTI raw synced drive into a drive directory", RunImportKitti},
       {"build-db", "Add a survey drive to a route database (SIFT features, positions)", RunBuildDb},
       {"info", "Summarise a route database", RunInfo},
+      {"evaluate", "Compare results with ground truth: tables, JSON, HTML report", RunEvaluate},
+      {"export", "Export result trajectories: TUM, KITTI, GeoJSON, KML, GPX", RunExport},
   };
   return commands;
 }

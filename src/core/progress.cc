@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 
 #include <fmt/format.h>
 
@@ -39,9 +40,14 @@ Progress::Progress(std::string label, int64_t total, ProgressStyle style)
     style_ = isatty(STDERR_FILENO) ? ProgressStyle::kBar : ProgressStyle::kLines;
   }
   start_ = last_print_ = std::chrono::steady_clock::now();
+  uncaught_at_start_ = std::uncaught_exceptions();
 }
 
-Progress::~Progress() { Finish(); }
+Progress::~Progress() {
+  // Unwinding from an error: the error line is what the user should see, not a last bar.
+  if (std::uncaught_exceptions() > uncaught_at_start_) return;
+  Finish();
+}
 
 void Progress::Add(int64_t n) {
   std::lock_guard<std::mutex> lock(mutex_);

@@ -20,9 +20,12 @@ const std::vector<Command>& Commands();
 // The closest command name to a mistyped one, or "" if none is close.
 std::string SuggestCommand(const std::string& typed);
 
+int RunSynth(int argc, char** argv);
 int RunImportKitti(int argc, char** argv);
 int RunBuildDb(int argc, char** argv);
 int RunInfo(int argc, char** argv);
+int RunEvaluate(int argc, char** argv);
+int RunExport(int argc, char** argv);
 
 // Exit codes.
 constexpr int kExitOk = 0;

@@ -38,7 +38,8 @@ class Progress {
   void Add(int64_t n = 1);
   // Sets the count of units done (e.g. when resuming).
   void Set(int64_t done);
-  // Prints the final line once; called by the destructor if not called before.
+  // Prints the final line once; called by the destructor if not called before (unless the
+  // destructor runs because of an exception).
   void Finish();
   // Changes the total (when it becomes known only once work starts).
   void SetTotal(int64_t total);
@@ -57,6 +58,7 @@ class Progress {
   int64_t done_ = 0;
   ProgressStyle style_;
   bool finished_ = false;
+  int uncaught_at_start_ = 0;
   std::chrono::steady_clock::time_point start_;
   std::chrono::steady_clock::time_point last_print_;
   mutable std::mutex mutex_;

@@ -1,0 +1,272 @@
+#include "epiloc/eval/evaluate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <optional>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "epiloc/core/csv.h"
+#include "epiloc/core/error.h"
+#include "epiloc/geo/route.h"
+
+namespace epiloc {
+namespace {
+
+// Ground truth of a row, with the index of the nearest truth sample in time (the hint of its
+// projection onto the route).
+struct Match {
+  Geodetic position;
+  size_t nearest = 0;
+};
+
+class TruthMatcher {
+ public:
+  TruthMatcher(const PositionTrack& truth, Association association, double max_gap_s)
+      : truth_(truth), association_(association), max_gap_s_(max_gap_s) {
+    for (size_t i = 0; i < truth.samples.size(); ++i) {
+      if (truth.samples[i].frame != kInvalidFrame) by_frame_.emplace(truth.samples[i].frame, i);
+    }
+  }
+
+  std::optional<Match> Find(const ResultRow& row) const {
+    if (association_ == Association::kFrame) {
+      const auto it = by_frame_.find(row.frame);
+      if (row.frame == kInvalidFrame || it == by_frame_.end()) return std::nullopt;
+      return Match{truth_.samples[it->second].position, it->second};
+    }
+    const auto sample = truth_.Interpolate(row.timestamp_s, max_gap_s_);
+    if (!sample) return std::nullopt;
+    return Match{sample->position, NearestInTime(row.timestamp_s)};
+  }
+
+ private:
+  size_t NearestInTime(double t) const {
+    const auto& s = truth_.samples;
+    const auto it = std::lower_bound(
+        s.begin(), s.end(), t, [](const PositionSample& a, double b) { return a.timestamp_s < b; });
+    const size_t i = static_cast<size_t>(it - s.begin());
+    if (i == 0) return 0;
+    if (i == s.size()) return s.size() - 1;
+    return t - s[i - 1].timestamp_s <= s[i].timestamp_s - t ? i - 1 : i;
+  }
+
+  const PositionTrack& truth_;
+  Association association_;
+  double max_gap_s_;
+  std::map<frame_t, size_t> by_frame_;
+};
+
+Association ChooseAssociation(const ResultTable& result,
+                              const PositionTrack& truth,
+                              Association requested) {
+  if (requested != Association::kAuto) return requested;
+  const bool truth_frames = std::all_of(truth.samples.begin(), truth.samples.end(),
+                                        [](const PositionSample& s) { return s.frame >= 0; });
+  const bool result_frames = std::all_of(result.rows.begin(), result.rows.end(), [](const auto& r) {
+    return r.status != ResultStatus::kOk || r.frame != kInvalidFrame;
+  });
+  return truth_frames && result_frames ? Association::kFrame : Association::kTime;
+}
+
+std::string TimeRange(double first, double last) {
+  return fmt::format("{:.3f}..{:.3f} s", first, last);
+}
+
+// The ok rows' time span (for the "no overlap" message).
+std::pair<double, double> OkTimeSpan(const ResultTable& result) {
+  double first = INFINITY, last = -INFINITY;
+  for (const auto& row : result.rows) {
+    if (row.status != ResultStatus::kOk) continue;
+    first = std::min(first, row.timestamp_s);
+    last = std::max(last, row.timestamp_s);
+  }
+  return {first, last};
+}
+
+void Summarize(MethodEvaluation& m) {
+  std::sort(m.frames.begin(), m.frames.end(),
+            [](const FrameError& a, const FrameError& b) { return a.timestamp_s < b.timestamp_s; });
+  std::vector<double> along, cross, horizontal, vertical, full;
+  for (const auto& f : m.frames) {
+    along.push_back(f.along_track_m);
+    cross.push_back(f.cross_track_m);
+    horizontal.push_back(f.horizontal_m);
+    vertical.push_back(f.vertical_m);
+    full.push_back(f.error_3d_m);
+  }
+  m.along_track = ComputeErrorStatistics(along);
+  m.cross_track = ComputeErrorStatistics(cross);
+  m.horizontal = ComputeErrorStatistics(horizontal);
+  m.vertical = ComputeErrorStatistics(vertical);
+  m.error_3d = ComputeErrorStatistics(full);
+}
+
+}  // namespace
+
+Association ParseAssociation(const std::string& name) {
+  if (name == "auto") return Association::kAuto;
+  if (name == "frame") return Association::kFrame;
+  if (name == "time") return Association::kTime;
+  Throw("unknown association '{}' (known: auto, frame, time)", name);
+}
+
+std::string AssociationName(Association association) {
+  switch (association) {
+    case Association::kAuto:
+      return "auto";
+    case Association::kFrame:
+      return "frame";
+    case Association::kTime:
+      return "time";
+  }
+  return "?";
+}
+
+void EvaluateOptions::Check() const {
+  EPILOC_CHECK(std::isfinite(max_gap_s) && max_gap_s >= 0.0, "--max-gap-s must be >= 0, got {}",
+               max_gap_s);
+  EPILOC_CHECK(std::isfinite(projection_window_m) && projection_window_m > 0.0,
+               "projection window must be > 0 m, got {}", projection_window_m);
+}
+
+const MethodEvaluation* Evaluation::Find(const std::string& method) const {
+  for (const auto& m : methods) {
+    if (m.method == method) return &m;
+  }
+  return nullptr;
+}
+
+Evaluation Evaluate(const ResultTable& result,
+                    const PositionTrack& truth,
+                    const EvaluationRoute& route_in,
+                    const EvaluateOptions& options) {
+  options.Check();
+  EPILOC_CHECK(!truth.samples.empty(), "{}: the ground truth has no positions", truth.source);
+  EPILOC_CHECK(!result.rows.empty(), "{}: no rows (an empty result)", result.path);
+  Evaluation eval;
+  eval.route = route_in;
+  eval.max_gap_s = options.max_gap_s;
+  eval.association = ChooseAssociation(result, truth, options.association);
+  const EnuFrame enu(route_in.origin);
+  const Route route = [&] {
+    try {
+      return Route(route_in.points_in_enu);
+    } catch (const Error& e) {
+      Throw("{}: {} (give --route or --route-drive)", route_in.source, e.what());
+    }
+  }();
+  eval.route_length_m = route.length_m();
+  const double window = options.projection_window_m;
+
+  for (size_t i = 0; i < truth.samples.size(); ++i) {
+    const Eigen::Vector3d p = enu.ToEnu(truth.samples[i].position);
+    eval.truth_in_enu.push_back(p);
+    eval.truth_s_m.push_back(i == 0 ? route.Project(p).s_m
+                                    : route.ProjectNear(p, eval.truth_s_m.back(), window).s_m);
+  }
+
+  const TruthMatcher matcher(truth, eval.association, options.max_gap_s);
+  std::map<std::string, MethodEvaluation> by_method;
+  for (const auto& row : result.rows) {
+    MethodEvaluation& m = by_method[row.method];
+    m.method = row.method;
+    ++m.rows;
+    ++m.by_status[static_cast<size_t>(row.status)];
+    if (row.status != ResultStatus::kOk) continue;
+    const auto match = matcher.Find(row);
+    if (!match) {
+      ++m.unmatched;
+      m.unmatched_frames.push_back(row.frame);
+      m.unmatched_times_s.push_back(row.timestamp_s);
+      continue;
+    }
+    FrameError f;
+    f.frame = row.frame;
+    f.timestamp_s = row.timestamp_s;
+    f.truth_in_enu = enu.ToEnu(match->position);
+    f.estimate_in_enu = enu.ToEnu(row.position);
+    const RouteProjection t =
+        route.ProjectNear(f.truth_in_enu, eval.truth_s_m[match->nearest], window);
+    const RouteProjection e = route.ProjectNear(f.estimate_in_enu, t.s_m, window);
+    f.truth_s_m = t.s_m;
+    f.estimate_s_m = e.s_m;
+    f.along_track_m = e.s_m - t.s_m;
+    f.cross_track_m = e.cross_track_m - t.cross_track_m;
+    const Eigen::Vector3d d = f.estimate_in_enu - f.truth_in_enu;
+    f.horizontal_m = d.head<2>().norm();
+    f.vertical_m = d.z();
+    f.error_3d_m = d.norm();
+    m.frames.push_back(f);
+  }
+
+  int64_t evaluated = 0;
+  for (const auto& name : result.Methods()) {
+    MethodEvaluation& m = by_method.at(name);
+    Summarize(m);
+    evaluated += m.evaluated();
+    if (m.unmatched > 0) {
+      constexpr size_t kShown = 8;
+      std::vector<std::string> shown;
+      for (size_t i = 0; i < std::min(kShown, m.unmatched_frames.size()); ++i) {
+        shown.push_back(m.unmatched_frames[i] == kInvalidFrame
+                            ? fmt::format("t={:.3f}", m.unmatched_times_s[i])
+                            : std::to_string(m.unmatched_frames[i]));
+      }
+      std::string warning = fmt::format(
+          "method {}: {} of {} ok frames have no ground truth ({}), not evaluated: {}{}", name,
+          m.unmatched, m.ok(),
+          eval.association == Association::kFrame
+              ? "frame number absent from the ground truth"
+              : fmt::format("no ground truth within --max-gap-s {} s", options.max_gap_s),
+          fmt::join(shown, ", "), m.unmatched_frames.size() > kShown ? ", ..." : "");
+      eval.warnings.push_back(std::move(warning));
+    }
+    eval.methods.push_back(std::move(m));
+  }
+  if (evaluated == 0) {
+    const auto [first, last] = OkTimeSpan(result);
+    if (first > last) {
+      Throw("{}: no row has status ok, nothing to evaluate", result.path);
+    }
+    if (eval.association == Association::kFrame) {
+      Throw(
+          "{}: no frame number of the result occurs in the ground truth {} (association by "
+          "frame; try --associate time)",
+          result.path, truth.source);
+    }
+    Throw(
+        "{}: no overlap in time with the ground truth {} (ok rows at {}, ground truth at {}, "
+        "--max-gap-s {})",
+        result.path, truth.source, TimeRange(first, last),
+        TimeRange(truth.samples.front().timestamp_s, truth.samples.back().timestamp_s),
+        options.max_gap_s);
+  }
+  for (const auto& warning : eval.warnings) spdlog::warn("{}", warning);
+  return eval;
+}
+
+std::vector<ResultRow> GnssBaselineRows(const PositionTrack& gnss,
+                                        const std::vector<FrameRecord>& frames,
+                                        double max_gap_s) {
+  std::vector<ResultRow> rows;
+  for (const auto& frame : frames) {
+    ResultRow row;
+    row.method = "gps";
+    row.frame = frame.frame;
+    row.timestamp_s = frame.timestamp_s;
+    if (const auto sample = gnss.Interpolate(frame.timestamp_s, max_gap_s)) {
+      row.position = sample->position;
+      row.has_position = true;
+      row.status = ResultStatus::kOk;
+    } else {
+      row.status = ResultStatus::kLost;
+    }
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+}  // namespace epiloc
