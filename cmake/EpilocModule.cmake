@@ -18,6 +18,7 @@ function(epiloc_test module name)
   target_link_libraries(${target} PRIVATE epiloc_${module} ${ARG_LINK} GTest::gtest GTest::gmock GTest::gtest_main)
   target_compile_definitions(${target} PRIVATE
     EPILOC_SHARED_DATA_DIR="${EPILOC_SOURCE_DIR}/../shared/data"
-    EPILOC_TEST_DATA_DIR="${EPILOC_SOURCE_DIR}/data")
+    EPILOC_TEST_DATA_DIR="${EPILOC_SOURCE_DIR}/data"
+    EPILOC_SOURCE_DIR="${EPILOC_SOURCE_DIR}")
   gtest_discover_tests(${target} TEST_PREFIX "${module}_" DISCOVERY_TIMEOUT 60 PROPERTIES LABELS ${module})
 endfunction()

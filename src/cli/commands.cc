@@ -30,6 +30,7 @@ const std::vector<Command>& Commands() {
       {"import-kitti", "Convert a KITTI raw synced drive into a drive directory", RunImportKitti},
       {"build-db", "Add a survey drive to a route database (SIFT features, positions)", RunBuildDb},
       {"info", "Summarise a route database", RunInfo},
+      {"localize", "Localize a drive along the route: epipolar distance, DTW, V-fit", RunLocalize},
       {"evaluate", "Compare results with ground truth: tables, JSON, HTML report", RunEvaluate},
       {"export", "Export result trajectories: TUM, KITTI, GeoJSON, KML, GPX", RunExport},
   };

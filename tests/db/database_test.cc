@@ -100,7 +100,7 @@ std::string ReadText(const fs::path& path) {
 
 // The migration files as they are in the source tree, in order.
 std::vector<fs::path> MigrationFiles() {
-  const fs::path dir = fs::path(EPILOC_TEST_DATA_DIR) / ".." / "db_schema";
+  const fs::path dir = fs::path(EPILOC_SOURCE_DIR) / "db_schema";
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(dir)) {
     const std::string name = entry.path().filename().string();
@@ -855,6 +855,105 @@ TEST_F(DatabaseFileTest, ReadOnlyModeReadsAndNeverWrites) {
   ExpectError([&] { db.SetMeta("k", "v"); }, {path, "readonly"});
   ExpectError([&] { db.WriteRoute({}); }, {path, "readonly"});
   EXPECT_EQ(db.ReadRoute(), sample.route);
+}
+
+TEST_F(DatabaseFileTest, RetrievalModelAndGlobalDescriptorsRoundTrip) {
+  const std::string path = PathOf("retrieval.db");
+  Sample sample;
+  const std::vector<uint8_t> model = {'E', 'G', 'D', 'M', 0, 255, 7};
+  // Every float bit pattern that is finite survives, including -0 and denormals.
+  const std::vector<float> first = {1.0f, -0.0f, 1e-40f, -3.25e38f};
+  const std::vector<float> second = {0.5f, 0.25f, -0.125f, 2.0f};
+  {
+    Database db(path);
+    sample = WriteSample(&db, 11);
+    EXPECT_FALSE(db.ReadRetrievalModel().has_value());
+    EXPECT_TRUE(db.ReadGlobalDescriptors().empty());
+    db.WriteRetrievalModel({1, 2, 3}, 8, 4);
+    db.WriteRetrievalModel(model, 64, 4);  // replaces
+    db.WriteGlobalDescriptor(sample.frames[2].frame.image_id, second);
+    db.WriteGlobalDescriptor(sample.frames[0].frame.image_id, second);
+    db.WriteGlobalDescriptor(sample.frames[0].frame.image_id, first);  // replaces
+    ExpectError([&] { db.WriteGlobalDescriptor(sample.frames[1].frame.image_id, {}); },
+                {path, "empty global descriptor"});
+    ExpectError([&] { db.WriteGlobalDescriptor(sample.frames[1].frame.image_id,
+                                                 {std::numeric_limits<float>::quiet_NaN()}); },
+                {path, "non-finite"});
+    ExpectError([&] { db.WriteGlobalDescriptor(999, first); }, {path, "FOREIGN KEY"});
+  }
+  {
+    Database db(path, Database::Mode::kReadOnly);
+    EXPECT_EQ(db.ReadRetrievalModel(), model);
+    EXPECT_EQ(db.NumGlobalDescriptors(), 2);
+    const auto descriptors = db.ReadGlobalDescriptors();
+    ASSERT_EQ(descriptors.size(), 2u);
+    EXPECT_EQ(descriptors[0].first, sample.frames[0].frame.image_id);
+    EXPECT_EQ(descriptors[1].first, sample.frames[2].frame.image_id);
+    ASSERT_EQ(descriptors[0].second.size(), first.size());
+    for (size_t i = 0; i < first.size(); ++i) {
+      EXPECT_EQ(std::memcmp(&descriptors[0].second[i], &first[i], 4), 0) << i;
+    }
+    EXPECT_EQ(descriptors[1].second, second);
+  }
+  RawConnection raw(path);
+  EXPECT_EQ(raw.QueryText("SELECT num_words || ' ' || dims FROM retrieval_model"), "64 4");
+  // Little-endian float32: 1.0f is 00 00 80 3F.
+  EXPECT_EQ(raw.QueryText("SELECT hex(substr(data, 1, 4)) FROM global_descriptors "
+                          "ORDER BY image_id LIMIT 1"),
+            "0000803F");
+  raw.Exec("PRAGMA ignore_check_constraints = ON");
+  raw.Exec("UPDATE global_descriptors SET dims = 5");
+  {
+    Database db(path);
+    ExpectError([&] { db.ReadGlobalDescriptors(); },
+                {path, "corrupt global descriptor blob for image"});
+    // Deleting a frame deletes its descriptor; clearing deletes the rest.
+    db.DeleteFrame(sample.frames[0].frame.image_id);
+    EXPECT_EQ(db.NumGlobalDescriptors(), 1);
+    db.ClearGlobalDescriptors();
+    EXPECT_EQ(db.NumGlobalDescriptors(), 0);
+    db.DeleteRetrievalModel();
+    EXPECT_FALSE(db.ReadRetrievalModel().has_value());
+  }
+}
+
+TEST_F(DatabaseFileTest, MigratingAVersionOneDatabaseKeepsItsFramesAndAddsRetrieval) {
+  const auto files = MigrationFiles();
+  ASSERT_GE(files.size(), 2u);
+  const std::string path = PathOf("version_1.db");
+  {
+    // As epiloc 0.x left it: schema version 1 with a drive and a frame.
+    RawConnection raw(path);
+    raw.Exec("BEGIN");
+    raw.Exec(ReadText(files[0]));
+    raw.Exec("PRAGMA user_version = 1");
+    raw.Exec("INSERT INTO drives (drive_id, name) VALUES (1, 'old')");
+    raw.Exec(
+        "INSERT INTO frames (image_id, drive_id, frame, timestamp_s, lat_deg, lon_deg, alt_m, "
+        "e_m, n_m, u_m, heading_deg, s_m, num_features) "
+        "VALUES (7, 1, 3, 12.5, 49.0, 8.4, 110.0, 1.0, 2.0, 3.0, 90.0, 4.5, 1)");
+    raw.Exec("INSERT INTO keypoints VALUES (7, 1, 4, zeroblob(16))");
+    raw.Exec("INSERT INTO descriptors VALUES (7, 1, 128, zeroblob(128))");
+    raw.Exec("COMMIT");
+  }
+  {
+    Database db(path);
+    EXPECT_EQ(db.SchemaVersion(), Database::LatestSchemaVersion());
+    const auto frames = db.ReadFrames();
+    ASSERT_EQ(frames.size(), 1u);
+    EXPECT_EQ(frames[0].image_id, 7);
+    EXPECT_EQ(frames[0].frame, 3);
+    EXPECT_EQ(frames[0].s_m, 4.5);
+    EXPECT_EQ(db.ReadDescriptors(7).rows(), 1);
+    EXPECT_FALSE(db.ReadRetrievalModel().has_value());
+    EXPECT_EQ(db.NumGlobalDescriptors(), 0);
+    db.WriteGlobalDescriptor(7, {1.0f, 0.0f});
+    db.WriteRetrievalModel({1, 2}, 2, 2);
+  }
+  RawConnection raw(path);
+  EXPECT_EQ(raw.QueryInt("PRAGMA user_version"), Database::LatestSchemaVersion());
+  EXPECT_EQ(raw.QueryInt("SELECT count(*) FROM global_descriptors"), 1);
+  EXPECT_EQ(raw.QueryInt("SELECT count(*) FROM frames"), 1);
 }
 
 }  // namespace

@@ -24,6 +24,7 @@ int RunSynth(int argc, char** argv);
 int RunImportKitti(int argc, char** argv);
 int RunBuildDb(int argc, char** argv);
 int RunInfo(int argc, char** argv);
+int RunLocalize(int argc, char** argv);
 int RunEvaluate(int argc, char** argv);
 int RunExport(int argc, char** argv);
 

@@ -1,0 +1,84 @@
+// The epipolar distance between one query frame and database frames: features of the database
+// frames are streamed from SQLite through a bounded cache (memory independent of route length),
+// matched against the query frame's FLANN index and turned into an epipole (Kyutoku et al.).
+#pragma once
+
+#include <list>
+#include <memory>
+#include <mutex>
+#include <unordered_map>
+#include <vector>
+
+#include "epiloc/camera/camera.h"
+#include "epiloc/core/types.h"
+#include "epiloc/db/database.h"
+#include "epiloc/feature/matcher.h"
+#include "epiloc/geometry/epipole.h"
+
+namespace epiloc {
+
+struct PairOptions {
+  // Strongest database features used per frame (prefix of the stored rows; 0 = all).
+  int max_db_features = 2000;
+  // Database frames kept in memory; older ones are reloaded from SQLite when needed again.
+  int cache_frames = 96;
+  MatchOptions match;
+  EpipoleOptions epipole;
+  // Retry a pair with the 8-point fundamental matrix when the essential matrix fails (USAC
+  // occasionally locks onto a wrong model for near-identical viewpoints).
+  bool fundamental_fallback = true;
+
+  void Check() const;
+};
+
+// What one query/database pair gave.
+struct PairResult {
+  int db_index = -1;  // index into the evaluator's database frame list
+  bool valid = false;
+  double distance = 0.0;         // d = 1/|e_x|, 1/pixels of the query image
+  double signed_distance = 0.0;  // d with the sign of q_z (database camera ahead = positive)
+  int num_matches = 0;
+  int num_inliers = 0;
+  std::string failure;
+};
+
+class PairEvaluator {
+ public:
+  // `frames` are the database frames in route order (by s); `db` must outlive the evaluator and
+  // is read from the calling thread only (loads happen inside Evaluate under a lock).
+  PairEvaluator(const Database& db, std::vector<DbFrame> frames, const PairOptions& options);
+
+  const std::vector<DbFrame>& frames() const { return frames_; }
+  const Camera& DbCamera(int db_index) const;
+
+  // Evaluates the query frame (its undistorted pinhole camera, keypoints and FLANN index)
+  // against each listed database frame, in parallel over `num_threads`.
+  std::vector<PairResult> Evaluate(const Camera& query_camera,
+                                   const FeatureKeypoints& query_keypoints,
+                                   const DescriptorIndex& query_index,
+                                   const std::vector<int>& db_indices,
+                                   int num_threads) const;
+
+ private:
+  struct CachedFrame {
+    FeatureKeypoints keypoints;
+    FeatureDescriptors descriptors;
+  };
+  std::shared_ptr<const CachedFrame> Load(int db_index) const;
+  PairResult EvaluateOne(const Camera& query_camera,
+                         const FeatureKeypoints& query_keypoints,
+                         const DescriptorIndex& query_index,
+                         int db_index) const;
+
+  const Database& db_;
+  std::vector<DbFrame> frames_;
+  std::unordered_map<camera_t, Camera> cameras_;  // by drive's camera id
+  std::unordered_map<drive_t, camera_t> drive_cameras_;
+  PairOptions options_;
+  mutable std::mutex mutex_;
+  mutable std::list<int> lru_;  // most recent first
+  mutable std::unordered_map<int, std::pair<std::shared_ptr<const CachedFrame>,
+                                            std::list<int>::iterator>> cache_;
+};
+
+}  // namespace epiloc

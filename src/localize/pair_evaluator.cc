@@ -1,0 +1,124 @@
+#include "epiloc/localize/pair_evaluator.h"
+
+#include <algorithm>
+#include <atomic>
+#include <thread>
+
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+
+void PairOptions::Check() const {
+  EPILOC_CHECK(max_db_features >= 0, "localize: max_db_features must be >= 0");
+  EPILOC_CHECK(cache_frames >= 1, "localize: cache_frames must be >= 1");
+  match.Check();
+  epipole.Check();
+}
+
+PairEvaluator::PairEvaluator(const Database& db,
+                             std::vector<DbFrame> frames,
+                             const PairOptions& options)
+    : db_(db), frames_(std::move(frames)), options_(options) {
+  options_.Check();
+  for (const DbDrive& drive : db.ReadDrives()) {
+    drive_cameras_[drive.drive_id] = drive.camera_id;
+    if (cameras_.count(drive.camera_id) == 0) {
+      cameras_[drive.camera_id] = db.ReadCamera(drive.camera_id).camera;
+    }
+  }
+}
+
+const Camera& PairEvaluator::DbCamera(int db_index) const {
+  return cameras_.at(drive_cameras_.at(frames_.at(db_index).drive_id));
+}
+
+std::shared_ptr<const PairEvaluator::CachedFrame> PairEvaluator::Load(int db_index) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = cache_.find(db_index);
+  if (it != cache_.end()) {
+    lru_.splice(lru_.begin(), lru_, it->second.second);
+    return it->second.first;
+  }
+  auto frame = std::make_shared<CachedFrame>();
+  const image_t image_id = frames_[db_index].image_id;
+  frame->keypoints = db_.ReadKeypoints(image_id);
+  frame->descriptors = db_.ReadDescriptors(image_id);
+  const int keep = options_.max_db_features > 0
+                       ? std::min<int>(options_.max_db_features, frame->keypoints.rows())
+                       : static_cast<int>(frame->keypoints.rows());
+  // Rows are strongest first: the prefix is the best `keep` features.
+  frame->keypoints.conservativeResize(keep, Eigen::NoChange);
+  frame->descriptors.conservativeResize(keep, Eigen::NoChange);
+  lru_.push_front(db_index);
+  cache_[db_index] = {frame, lru_.begin()};
+  while (static_cast<int>(cache_.size()) > options_.cache_frames) {
+    cache_.erase(lru_.back());
+    lru_.pop_back();
+  }
+  return frame;
+}
+
+PairResult PairEvaluator::EvaluateOne(const Camera& query_camera,
+                                      const FeatureKeypoints& query_keypoints,
+                                      const DescriptorIndex& query_index,
+                                      int db_index) const {
+  const std::shared_ptr<const CachedFrame> db_frame = Load(db_index);
+  const std::vector<FeatureMatch> matches = query_index.Match(db_frame->descriptors);
+  std::vector<Eigen::Vector2d> query_points, db_points;
+  query_points.reserve(matches.size());
+  db_points.reserve(matches.size());
+  for (const FeatureMatch& m : matches) {
+    query_points.emplace_back(query_keypoints(m.index_a, 0), query_keypoints(m.index_a, 1));
+    db_points.emplace_back(db_frame->keypoints(m.index_b, 0), db_frame->keypoints(m.index_b, 1));
+  }
+  const Camera& db_camera = DbCamera(db_index);
+  EpipoleResult epipole =
+      EstimateEpipole(query_points, query_camera, db_points, db_camera, options_.epipole);
+  if (!epipole.valid && options_.fundamental_fallback &&
+      options_.epipole.model == EpipoleOptions::Model::kEssential &&
+      epipole.num_matches >= options_.epipole.min_inliers) {
+    EpipoleOptions fallback = options_.epipole;
+    fallback.model = EpipoleOptions::Model::kFundamental;
+    EpipoleResult second = EstimateEpipole(query_points, query_camera, db_points, db_camera, fallback);
+    if (second.valid) epipole = std::move(second);
+  }
+  PairResult result;
+  result.db_index = db_index;
+  result.valid = epipole.valid;
+  result.distance = epipole.distance;
+  result.signed_distance = epipole.signed_distance;
+  result.num_matches = epipole.num_matches;
+  result.num_inliers = epipole.num_inliers;
+  result.failure = epipole.failure;
+  return result;
+}
+
+std::vector<PairResult> PairEvaluator::Evaluate(const Camera& query_camera,
+                                                const FeatureKeypoints& query_keypoints,
+                                                const DescriptorIndex& query_index,
+                                                const std::vector<int>& db_indices,
+                                                int num_threads) const {
+  std::vector<PairResult> results(db_indices.size());
+  std::atomic<size_t> next{0};
+  std::exception_ptr failure;
+  std::mutex failure_mutex;
+  auto work = [&]() {
+    for (size_t k = next++; k < db_indices.size(); k = next++) {
+      try {
+        results[k] = EvaluateOne(query_camera, query_keypoints, query_index, db_indices[k]);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(failure_mutex);
+        if (!failure) failure = std::current_exception();
+      }
+    }
+  };
+  const int threads = std::max(1, std::min<int>(num_threads, static_cast<int>(db_indices.size())));
+  std::vector<std::thread> workers;
+  for (int t = 1; t < threads; ++t) workers.emplace_back(work);
+  work();
+  for (std::thread& worker : workers) worker.join();
+  if (failure) std::rethrow_exception(failure);
+  return results;
+}
+
+}  // namespace epiloc
