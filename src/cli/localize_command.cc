@@ -48,6 +48,12 @@ int RunLocalize(int argc, char** argv) {
   app.add_option("--query-max-image-size", options.sift.max_image_size,
                  "Query frames whose longer side exceeds this are downscaled for SIFT (0 = never)")
       ->capture_default_str();
+  std::string matcher = "window";
+  app.add_option("--matcher", matcher,
+                 "window: one FLANN search per query frame over its database window; pairs: one "
+                 "search per query/database pair (slower, reference)")
+      ->check(CLI::IsMember({"window", "pairs"}))
+      ->capture_default_str();
   app.add_option("--match-checks", options.pairs.match.num_checks,
                  "FLANN leaves visited per descriptor search (speed / recall)")
       ->capture_default_str();
@@ -60,6 +66,7 @@ int RunLocalize(int argc, char** argv) {
   if (auto code = Parse(app, flags, argc, argv)) return *code;
   options.mode = ParseMode(mode);
   options.use_gps = !no_gps;
+  options.pairs.window_matching = matcher == "window";
 
   Progress progress("localize", 0);
   const LocalizeRun run = Localize(db_path, drive_dir, options, progress.Callback());

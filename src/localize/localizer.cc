@@ -203,7 +203,7 @@ LocalizeRun Localize(const std::string& db_path,
     run.db_frame_numbers.push_back(db_frames[j].frame);
   }
   run.db_s_m = db_s;
-  const PairEvaluator evaluator(db, db_frames, options.pairs);
+  PairEvaluator evaluator(db, db_frames, options.pairs);
 
   const Drive drive = LoadDrive(drive_dir);
   const Undistorter undistorter(drive.camera);
@@ -235,7 +235,9 @@ LocalizeRun Localize(const std::string& db_path,
     SiftOptions sift = options.sift;
     sift.max_num_features = options.max_query_features;
     q.features = ExtractSift(undistorter.Undistort(reader.ReadGrey(i)), sift);
-    q.index = std::make_unique<DescriptorIndex>(q.features.descriptors, options.pairs.match);
+    if (!options.pairs.window_matching) {
+      q.index = std::make_unique<DescriptorIndex>(q.features.descriptors, options.pairs.match);
+    }
     return q;
   };
   std::deque<std::future<QueryFeatures>> ahead;
@@ -266,8 +268,11 @@ LocalizeRun Localize(const std::string& db_path,
     if (state.gps) diag.gps_s_m = state.gps->s_m;
 
     auto evaluate = [&](const std::vector<int>& indices) {
-      std::vector<PairResult> r = evaluator.Evaluate(query_camera, query.features.keypoints,
-                                                     *query.index, indices, num_threads);
+      std::vector<PairResult> r =
+          options.pairs.window_matching
+              ? evaluator.EvaluateWindow(query_camera, query.features, indices, num_threads)
+              : evaluator.Evaluate(query_camera, query.features.keypoints, *query.index, indices,
+                                   num_threads);
       run.num_pairs += static_cast<int64_t>(r.size());
       return r;
     };

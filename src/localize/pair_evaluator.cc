@@ -18,7 +18,7 @@ void PairOptions::Check() const {
 PairEvaluator::PairEvaluator(const Database& db,
                              std::vector<DbFrame> frames,
                              const PairOptions& options)
-    : db_(db), frames_(std::move(frames)), options_(options) {
+    : db_(db), frames_(std::move(frames)), options_(options), window_matcher_(options.window) {
   options_.Check();
   for (const DbDrive& drive : db.ReadDrives()) {
     drive_cameras_[drive.drive_id] = drive.camera_id;
@@ -58,18 +58,17 @@ std::shared_ptr<const PairEvaluator::CachedFrame> PairEvaluator::Load(int db_ind
   return frame;
 }
 
-PairResult PairEvaluator::EvaluateOne(const Camera& query_camera,
-                                      const FeatureKeypoints& query_keypoints,
-                                      const DescriptorIndex& query_index,
-                                      int db_index) const {
-  const std::shared_ptr<const CachedFrame> db_frame = Load(db_index);
-  const std::vector<FeatureMatch> matches = query_index.Match(db_frame->descriptors);
+PairResult PairEvaluator::EpipoleOfMatches(const Camera& query_camera,
+                                           const FeatureKeypoints& query_keypoints,
+                                           int db_index,
+                                           const CachedFrame& db_frame,
+                                           const std::vector<std::pair<int, int>>& rows) const {
   std::vector<Eigen::Vector2d> query_points, db_points;
-  query_points.reserve(matches.size());
-  db_points.reserve(matches.size());
-  for (const FeatureMatch& m : matches) {
-    query_points.emplace_back(query_keypoints(m.index_a, 0), query_keypoints(m.index_a, 1));
-    db_points.emplace_back(db_frame->keypoints(m.index_b, 0), db_frame->keypoints(m.index_b, 1));
+  query_points.reserve(rows.size());
+  db_points.reserve(rows.size());
+  for (const auto& [query_row, db_row] : rows) {
+    query_points.emplace_back(query_keypoints(query_row, 0), query_keypoints(query_row, 1));
+    db_points.emplace_back(db_frame.keypoints(db_row, 0), db_frame.keypoints(db_row, 1));
   }
   const Camera& db_camera = DbCamera(db_index);
   EpipoleResult epipole =
@@ -79,7 +78,8 @@ PairResult PairEvaluator::EvaluateOne(const Camera& query_camera,
       epipole.num_matches >= options_.epipole.min_inliers) {
     EpipoleOptions fallback = options_.epipole;
     fallback.model = EpipoleOptions::Model::kFundamental;
-    EpipoleResult second = EstimateEpipole(query_points, query_camera, db_points, db_camera, fallback);
+    EpipoleResult second =
+        EstimateEpipole(query_points, query_camera, db_points, db_camera, fallback);
     if (second.valid) epipole = std::move(second);
   }
   PairResult result;
@@ -93,31 +93,74 @@ PairResult PairEvaluator::EvaluateOne(const Camera& query_camera,
   return result;
 }
 
-std::vector<PairResult> PairEvaluator::Evaluate(const Camera& query_camera,
-                                                const FeatureKeypoints& query_keypoints,
-                                                const DescriptorIndex& query_index,
-                                                const std::vector<int>& db_indices,
-                                                int num_threads) const {
-  std::vector<PairResult> results(db_indices.size());
+PairResult PairEvaluator::EvaluateOne(const Camera& query_camera,
+                                      const FeatureKeypoints& query_keypoints,
+                                      const DescriptorIndex& query_index,
+                                      int db_index) const {
+  const std::shared_ptr<const CachedFrame> db_frame = Load(db_index);
+  std::vector<std::pair<int, int>> rows;
+  for (const FeatureMatch& m : query_index.Match(db_frame->descriptors)) {
+    rows.emplace_back(m.index_a, m.index_b);
+  }
+  return EpipoleOfMatches(query_camera, query_keypoints, db_index, *db_frame, rows);
+}
+
+void PairEvaluator::ParallelFor(size_t n, int num_threads, const std::function<void(size_t)>& task) {
   std::atomic<size_t> next{0};
   std::exception_ptr failure;
   std::mutex failure_mutex;
   auto work = [&]() {
-    for (size_t k = next++; k < db_indices.size(); k = next++) {
+    for (size_t k = next++; k < n; k = next++) {
       try {
-        results[k] = EvaluateOne(query_camera, query_keypoints, query_index, db_indices[k]);
+        task(k);
       } catch (...) {
         std::lock_guard<std::mutex> lock(failure_mutex);
         if (!failure) failure = std::current_exception();
       }
     }
   };
-  const int threads = std::max(1, std::min<int>(num_threads, static_cast<int>(db_indices.size())));
+  const int threads = std::max(1, std::min<int>(num_threads, static_cast<int>(n)));
   std::vector<std::thread> workers;
   for (int t = 1; t < threads; ++t) workers.emplace_back(work);
   work();
   for (std::thread& worker : workers) worker.join();
   if (failure) std::rethrow_exception(failure);
+}
+
+std::vector<PairResult> PairEvaluator::Evaluate(const Camera& query_camera,
+                                                const FeatureKeypoints& query_keypoints,
+                                                const DescriptorIndex& query_index,
+                                                const std::vector<int>& db_indices,
+                                                int num_threads) const {
+  std::vector<PairResult> results(db_indices.size());
+  ParallelFor(db_indices.size(), num_threads, [&](size_t k) {
+    results[k] = EvaluateOne(query_camera, query_keypoints, query_index, db_indices[k]);
+  });
+  return results;
+}
+
+std::vector<PairResult> PairEvaluator::EvaluateWindow(const Camera& query_camera,
+                                                      const FeatureSet& query,
+                                                      const std::vector<int>& db_indices,
+                                                      int num_threads) {
+  if (db_indices.empty()) return {};
+  window_matcher_.SetWindow(db_indices, [this](int db_index) {
+    const std::shared_ptr<const CachedFrame> frame = Load(db_index);
+    // Aliasing pointer: keeps the cached frame alive while the matcher holds its descriptors.
+    return std::shared_ptr<const FeatureDescriptors>(frame, &frame->descriptors);
+  });
+  const std::unordered_map<int, std::vector<WindowMatch>> matches =
+      window_matcher_.Match(query.descriptors, -1, options_.match.ratio, options_.match.num_checks);
+  std::vector<PairResult> results(db_indices.size());
+  ParallelFor(db_indices.size(), num_threads, [&](size_t k) {
+    const int db_index = db_indices[k];
+    std::vector<std::pair<int, int>> rows;
+    const auto it = matches.find(db_index);
+    if (it != matches.end()) {
+      for (const WindowMatch& m : it->second) rows.emplace_back(m.query_row, m.db_row);
+    }
+    results[k] = EpipoleOfMatches(query_camera, query.keypoints, db_index, *Load(db_index), rows);
+  });
   return results;
 }
 

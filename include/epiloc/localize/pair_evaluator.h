@@ -3,6 +3,7 @@
 // matched against the query frame's FLANN index and turned into an epipole (Kyutoku et al.).
 #pragma once
 
+#include <functional>
 #include <list>
 #include <memory>
 #include <mutex>
@@ -14,6 +15,7 @@
 #include "epiloc/db/database.h"
 #include "epiloc/feature/matcher.h"
 #include "epiloc/geometry/epipole.h"
+#include "epiloc/localize/window_matcher.h"
 
 namespace epiloc {
 
@@ -24,6 +26,10 @@ struct PairOptions {
   int cache_frames = 96;
   MatchOptions match;
   EpipoleOptions epipole;
+  // Match each query frame once against all database frames of its window (one FLANN index over
+  // the window, WindowMatcher) instead of once per pair: ~4x faster.
+  bool window_matching = true;
+  WindowMatcherOptions window;
   // Retry a pair with the 8-point fundamental matrix when the essential matrix fails (USAC
   // occasionally locks onto a wrong model for near-identical viewpoints).
   bool fundamental_fallback = true;
@@ -59,6 +65,13 @@ class PairEvaluator {
                                    const std::vector<int>& db_indices,
                                    int num_threads) const;
 
+  // The same with one search of the query's descriptors against the window of `db_indices`
+  // (WindowMatcher); the window slides incrementally between calls. Not thread-safe.
+  std::vector<PairResult> EvaluateWindow(const Camera& query_camera,
+                                         const FeatureSet& query,
+                                         const std::vector<int>& db_indices,
+                                         int num_threads);
+
  private:
   struct CachedFrame {
     FeatureKeypoints keypoints;
@@ -69,12 +82,21 @@ class PairEvaluator {
                          const FeatureKeypoints& query_keypoints,
                          const DescriptorIndex& query_index,
                          int db_index) const;
+  // Epipole from matched rows (query row, database row) of one pair.
+  PairResult EpipoleOfMatches(const Camera& query_camera,
+                              const FeatureKeypoints& query_keypoints,
+                              int db_index,
+                              const CachedFrame& db_frame,
+                              const std::vector<std::pair<int, int>>& rows) const;
+  // Runs task(k) for k in [0, n) on up to `num_threads` threads; rethrows the first error.
+  static void ParallelFor(size_t n, int num_threads, const std::function<void(size_t)>& task);
 
   const Database& db_;
   std::vector<DbFrame> frames_;
   std::unordered_map<camera_t, Camera> cameras_;  // by drive's camera id
   std::unordered_map<drive_t, camera_t> drive_cameras_;
   PairOptions options_;
+  WindowMatcher window_matcher_;
   mutable std::mutex mutex_;
   mutable std::list<int> lru_;  // most recent first
   mutable std::unordered_map<int, std::pair<std::shared_ptr<const CachedFrame>,
