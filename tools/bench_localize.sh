@@ -25,7 +25,7 @@ for mode in online free fixed; do
     --threads "$threads" --out "$work/$mode.csv" --quiet > /dev/null
   read -r wall_s rss_kb user_s sys_s < "$work/time"
   mean=$("$epiloc" evaluate --result "$work/$mode.csv" --truth "$work/query" \
-    --route "$work/route.sqlite" --no-gnss 2>/dev/null | awk '/^Mean\|e\|/ {print $2; exit}')
+    --route "$work/route.sqlite" --no-gnss 2>/dev/null | awk '/^Mean\|e\|/ {print $NF; exit}')
   awk -v m="$mode" -v w="$wall_s" -v r="$rss_kb" -v u="$user_s" -v s="$sys_s" -v e="$mean" 'BEGIN {
     printf "  %-7s %6.2f frames/s  (%.1f s wall, %.1f cores busy)  peak memory %6.1f MB  along-track mean %s m\n",
       m, 77 / w, w, (u + s) / w, r / 1024, e }'

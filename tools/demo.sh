@@ -13,7 +13,7 @@ epiloc=build/tools/epiloc
 
 mkdir -p "$out"
 rm -rf "$out/world" "$out"/route.sqlite*
-"$epiloc" synth --out "$out/world" --length-m 150 --query-rate-hz 10 --no-lidar
+"$epiloc" synth --out "$out/world" --length-m 100 --query-rate-hz 5 --no-lidar
 "$epiloc" build-db --drive "$out/world/survey" --db "$out/route.sqlite"
 "$epiloc" info --db "$out/route.sqlite"
 "$epiloc" localize --db "$out/route.sqlite" --drive "$out/world/query" --all-methods \

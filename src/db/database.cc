@@ -52,6 +52,25 @@ void DecodeKeypoints(const uint8_t* bytes, FeatureKeypoints* keypoints) {
   }
 }
 
+// Any float array in the keypoint blobs' layout (little-endian IEEE floats).
+std::vector<uint8_t> EncodeFloats(const float* values, size_t count) {
+  std::vector<uint8_t> bytes(count * sizeof(float));
+  for (size_t i = 0; i < count; ++i) {
+    uint32_t bits;
+    std::memcpy(&bits, &values[i], sizeof(bits));
+    for (int b = 0; b < 4; ++b) bytes[4 * i + b] = static_cast<uint8_t>(bits >> (8 * b));
+  }
+  return bytes;
+}
+
+void DecodeFloats(const uint8_t* bytes, size_t count, float* values) {
+  for (size_t i = 0; i < count; ++i) {
+    uint32_t bits = 0;
+    for (int b = 0; b < 4; ++b) bits |= static_cast<uint32_t>(bytes[4 * i + b]) << (8 * b);
+    std::memcpy(&values[i], &bits, sizeof(bits));
+  }
+}
+
 // "?, ?, ..., ?" with n parameters.
 std::string Placeholders(int n) {
   std::string text;
@@ -234,6 +253,18 @@ void Database::Impl::PrepareStatements() {
   write_route_point = Prepare(
       "INSERT INTO route_points (idx, e_m, n_m, u_m) VALUES (?, ?, ?, ?)");
   read_route = Prepare("SELECT e_m, n_m, u_m FROM route_points ORDER BY idx");
+  write_retrieval_model = Prepare(
+      "INSERT OR REPLACE INTO retrieval_model (id, num_words, dims, data) "
+      "VALUES (1, ?, ?, ?)");
+  read_retrieval_model = Prepare("SELECT data FROM retrieval_model WHERE id = 1");
+  delete_retrieval_model = Prepare("DELETE FROM retrieval_model");
+  write_global_descriptor = Prepare(
+      "INSERT OR REPLACE INTO global_descriptors (image_id, dims, data) "
+      "VALUES (?, ?, ?)");
+  read_global_descriptors =
+      Prepare("SELECT image_id, dims, data FROM global_descriptors ORDER BY image_id");
+  count_global_descriptors = Prepare("SELECT count(*) FROM global_descriptors");
+  clear_global_descriptors = Prepare("DELETE FROM global_descriptors");
 }
 
 void Database::SetMeta(const std::string& key, const std::string& value) {
@@ -545,6 +576,70 @@ std::vector<Eigen::Vector3d> Database::ReadRoute() const {
     points.push_back(p);
   }
   return points;
+}
+
+void Database::WriteRetrievalModel(const std::vector<uint8_t>& data, int num_words, int dims) {
+  EPILOC_CHECK(!data.empty() && num_words > 0 && dims > 0,
+               "{}: invalid retrieval model ({} bytes, {} words, {} dimensions)", path_,
+               data.size(), num_words, dims);
+  Query(impl_->write_retrieval_model, path_, "writing the retrieval model")
+      .Bind(num_words)
+      .Bind(dims)
+      .BindBlob(data)
+      .Run();
+}
+
+std::optional<std::vector<uint8_t>> Database::ReadRetrievalModel() const {
+  Query query(impl_->read_retrieval_model, path_, "reading the retrieval model");
+  if (!query.Step()) return std::nullopt;
+  const auto [data, bytes] = query.Blob();
+  if (bytes == 0) return std::vector<uint8_t>();
+  return std::vector<uint8_t>(data, data + bytes);
+}
+
+void Database::DeleteRetrievalModel() {
+  Query(impl_->delete_retrieval_model, path_, "deleting the retrieval model").Run();
+}
+
+void Database::WriteGlobalDescriptor(image_t image_id, const std::vector<float>& descriptor) {
+  EPILOC_CHECK(!descriptor.empty(), "{}: empty global descriptor for image {}", path_, image_id);
+  for (const float value : descriptor) {
+    EPILOC_CHECK(std::isfinite(value), "{}: non-finite global descriptor for image {}", path_,
+                 image_id);
+  }
+  Query(impl_->write_global_descriptor, path_,
+        fmt::format("writing the global descriptor of image {}", image_id))
+      .Bind(image_id)
+      .Bind(static_cast<int64_t>(descriptor.size()))
+      .BindBlob(EncodeFloats(descriptor.data(), descriptor.size()))
+      .Run();
+}
+
+std::vector<std::pair<image_t, std::vector<float>>> Database::ReadGlobalDescriptors() const {
+  Query query(impl_->read_global_descriptors, path_, "reading global descriptors");
+  std::vector<std::pair<image_t, std::vector<float>>> descriptors;
+  while (query.Step()) {
+    const image_t image_id = query.Int();
+    const int64_t dims = query.Int();
+    const auto [data, bytes] = query.Blob();
+    if (dims <= 0 || bytes % 4 != 0 || bytes / 4 != dims) {
+      Throw("{}: corrupt global descriptor blob for image {} ({} values in {} bytes)", path_,
+            image_id, dims, bytes);
+    }
+    std::vector<float> values(static_cast<size_t>(dims));
+    DecodeFloats(data, values.size(), values.data());
+    descriptors.emplace_back(image_id, std::move(values));
+  }
+  return descriptors;
+}
+
+int64_t Database::NumGlobalDescriptors() const {
+  Query query(impl_->count_global_descriptors, path_, "counting global descriptors");
+  return query.Step() ? query.Int() : 0;
+}
+
+void Database::ClearGlobalDescriptors() {
+  Query(impl_->clear_global_descriptors, path_, "clearing global descriptors").Run();
 }
 
 void Database::DeleteFrame(image_t image_id) {

@@ -165,6 +165,13 @@ class Database::Impl {
   sqlite3_stmt* delete_drive = nullptr;
   sqlite3_stmt* delete_unused_camera = nullptr;
   sqlite3_stmt* delete_meta = nullptr;
+  sqlite3_stmt* write_retrieval_model = nullptr;
+  sqlite3_stmt* read_retrieval_model = nullptr;
+  sqlite3_stmt* delete_retrieval_model = nullptr;
+  sqlite3_stmt* write_global_descriptor = nullptr;
+  sqlite3_stmt* read_global_descriptors = nullptr;
+  sqlite3_stmt* count_global_descriptors = nullptr;
+  sqlite3_stmt* clear_global_descriptors = nullptr;
 
  private:
   // Runs a one-off query returning one integer (0 if no row).

@@ -8,6 +8,7 @@
 #include <limits>
 #include <memory>
 #include <thread>
+#include <unordered_map>
 
 #include <spdlog/spdlog.h>
 
@@ -17,6 +18,7 @@
 #include "epiloc/geo/route.h"
 #include "epiloc/io/drive.h"
 #include "epiloc/io/frame_reader.h"
+#include "epiloc/survey/retrieval_index.h"
 
 namespace epiloc {
 namespace {
@@ -33,6 +35,7 @@ double Seconds(Clock::time_point since) {
 struct QueryFeatures {
   FeatureSet features;
   std::unique_ptr<DescriptorIndex> index;
+  Eigen::VectorXf global;  // retrieval descriptor (empty without a retrieval index)
 };
 
 // Everything the per-frame methods report, before it becomes result rows.
@@ -205,6 +208,21 @@ LocalizeRun Localize(const std::string& db_path,
   run.db_s_m = db_s;
   PairEvaluator evaluator(db, db_frames, options.pairs);
 
+  // Whole-route image retrieval places the drive without GPS and recovers a lost track.
+  std::optional<GlobalDescriptorModel> retrieval_model;
+  GlobalIndex retrieval_index;
+  std::unordered_map<int64_t, int> db_index_of_image;
+  if (HasCurrentRetrievalIndex(db)) {
+    retrieval_model.emplace();
+    retrieval_index = LoadRetrievalIndex(db, &*retrieval_model);
+    for (int j = 0; j < num_db; ++j) db_index_of_image[db_frames[j].image_id] = j;
+  } else if (!options.use_gps) {
+    Throw("{}: localizing without GPS needs the database's retrieval index (re-run build-db)",
+          db_path);
+  } else {
+    spdlog::warn("{}: no retrieval index; a lost track re-initialises from GPS only", db_path);
+  }
+
   const Drive drive = LoadDrive(drive_dir);
   const Undistorter undistorter(drive.camera);
   const Camera& query_camera = undistorter.undistorted_camera();
@@ -238,6 +256,7 @@ LocalizeRun Localize(const std::string& db_path,
     if (!options.pairs.window_matching) {
       q.index = std::make_unique<DescriptorIndex>(q.features.descriptors, options.pairs.match);
     }
+    if (retrieval_model) q.global = retrieval_model->Compute(q.features.descriptors);
     return q;
   };
   std::deque<std::future<QueryFeatures>> ahead;
@@ -281,16 +300,26 @@ LocalizeRun Localize(const std::string& db_path,
       if (!tracking) {
         // (Re)initialise: a coarse sweep of the prior window, then the dense window around the
         // best-supported frame.
-        std::vector<int> window;
-        if (state.gps) {
-          window = FramesBetween(db_s, state.gps->s_m - options.gps_window_m,
-                                 state.gps->s_m + options.gps_window_m);
-        } else if (!options.use_gps) {
-          Throw("{}: localizing without GPS needs the database's retrieval index", db_path);
-        }
+        // Candidates: the best retrieval matches (inside the GPS window when there is one), or
+        // an even sweep of the GPS window without a retrieval index.
         std::vector<int> sweep;
-        const size_t step = std::max<size_t>(1, window.size() / (2 * options.init_candidates));
-        for (size_t k = 0; k < window.size(); k += step) sweep.push_back(window[k]);
+        if (retrieval_model) {
+          const int wanted = options.init_candidates;
+          const int searched = state.gps ? std::min(num_db, 20 * wanted) : wanted;
+          for (const auto& [image_id, score] : retrieval_index.Search(query.global, searched)) {
+            const int j = db_index_of_image.at(image_id);
+            if (state.gps && std::abs(db_s[j] - state.gps->s_m) > options.gps_window_m) continue;
+            sweep.push_back(j);
+            if (static_cast<int>(sweep.size()) >= wanted) break;
+          }
+        }
+        if (sweep.empty() && state.gps) {
+          const std::vector<int> window = FramesBetween(
+              db_s, state.gps->s_m - options.gps_window_m, state.gps->s_m + options.gps_window_m);
+          const size_t step = std::max<size_t>(1, window.size() / (2 * options.init_candidates));
+          for (size_t k = 0; k < window.size(); k += step) sweep.push_back(window[k]);
+        }
+        std::sort(sweep.begin(), sweep.end());
         const std::vector<PairResult> coarse = evaluate(sweep);
         int best = -1;
         for (const PairResult& p : coarse) {

@@ -21,6 +21,7 @@
 #include "epiloc/io/drive.h"
 #include "epiloc/io/frame_reader.h"
 #include "epiloc/io/position_readers.h"
+#include "epiloc/survey/retrieval_index.h"
 
 namespace epiloc {
 namespace {
@@ -330,6 +331,10 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
     drive_record.complete = true;
     db.UpdateDrive(drive_record);
     transaction.Commit();
+  }
+  if (options.retrieval_index && (summary.frames_added > 0 || !HasCurrentRetrievalIndex(db))) {
+    const RetrievalIndexSummary index = BuildRetrievalIndex(db, VocabularyOptions());
+    if (!index.built) spdlog::warn("{}: no retrieval index: {}", db_path, index.reason);
   }
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -876,9 +876,12 @@ TEST_F(DatabaseFileTest, RetrievalModelAndGlobalDescriptorsRoundTrip) {
     db.WriteGlobalDescriptor(sample.frames[0].frame.image_id, first);  // replaces
     ExpectError([&] { db.WriteGlobalDescriptor(sample.frames[1].frame.image_id, {}); },
                 {path, "empty global descriptor"});
-    ExpectError([&] { db.WriteGlobalDescriptor(sample.frames[1].frame.image_id,
-                                                 {std::numeric_limits<float>::quiet_NaN()}); },
-                {path, "non-finite"});
+    ExpectError(
+        [&] {
+          db.WriteGlobalDescriptor(sample.frames[1].frame.image_id,
+                                   {std::numeric_limits<float>::quiet_NaN()});
+        },
+        {path, "non-finite"});
     ExpectError([&] { db.WriteGlobalDescriptor(999, first); }, {path, "FOREIGN KEY"});
   }
   {

@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -108,6 +109,22 @@ class Database {
   // The route polyline (database ENU, metres), written once from the first drive.
   void WriteRoute(const std::vector<Eigen::Vector3d>& points_in_enu);
   std::vector<Eigen::Vector3d> ReadRoute() const;
+
+  // Whole-image retrieval (schema version 2). The model is an opaque blob for this class
+  // (GlobalDescriptorModel::Serialize); num_words and dims are stored beside it for inspection.
+  // Writing replaces the one stored model.
+  void WriteRetrievalModel(const std::vector<uint8_t>& data, int num_words, int dims);
+  std::optional<std::vector<uint8_t>> ReadRetrievalModel() const;
+  void DeleteRetrievalModel();
+  // One global descriptor per frame (float32, little-endian); writing replaces the frame's
+  // descriptor; it is deleted with its frame. Throws Error for an empty or non-finite descriptor
+  // or an unknown image.
+  void WriteGlobalDescriptor(image_t image_id, const std::vector<float>& descriptor);
+  // All global descriptors, ordered by image_id. Throws Error naming the image for a blob whose
+  // byte count is not 4 * dims.
+  std::vector<std::pair<image_t, std::vector<float>>> ReadGlobalDescriptors() const;
+  int64_t NumGlobalDescriptors() const;
+  void ClearGlobalDescriptors();
 
   // Removal, for undoing a failed build: a frame (with its features); a drive (with its frames,
   // and its camera if no other drive uses it); the route and ENU origin (only sensible when no

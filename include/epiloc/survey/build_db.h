@@ -20,6 +20,9 @@ struct BuildDbOptions {
   // Worker threads for reading, undistorting and SIFT (0 = one per core).
   int num_threads = 0;
   SiftOptions sift;
+  // Afterwards (re)build the database's whole-image retrieval index (BuildRetrievalIndex with
+  // default VocabularyOptions) when this run added frames or the index is missing or stale.
+  bool retrieval_index = true;
 
   void Check() const;
 };
