@@ -206,6 +206,20 @@ LocalizeRun Localize(const std::string& db_path,
     run.db_frame_numbers.push_back(db_frames[j].frame);
   }
   run.db_s_m = db_s;
+  // Windows scale with the database's frame spacing, so a sparse survey still gives the V-fit
+  // enough frames on both sides: at least 2.5 spacings, never less than the options say.
+  std::vector<double> spacing;
+  for (int j = 1; j < num_db; ++j) {
+    if (db_s[j] > db_s[j - 1]) spacing.push_back(db_s[j] - db_s[j - 1]);
+  }
+  double median_spacing = 0.0;
+  if (!spacing.empty()) {
+    std::nth_element(spacing.begin(), spacing.begin() + spacing.size() / 2, spacing.end());
+    median_spacing = spacing[spacing.size() / 2];
+  }
+  LocalizeOptions effective = options;
+  effective.track_window_m = std::max(options.track_window_m, 2.5 * median_spacing);
+  effective.fit_window_m = std::max(options.fit_window_m, 2.5 * median_spacing);
   PairEvaluator evaluator(db, db_frames, options.pairs);
 
   // Whole-route image retrieval places the drive without GPS and recovers a lost track.
@@ -329,8 +343,8 @@ LocalizeRun Localize(const std::string& db_path,
         }
         if (best >= 0) {
           const double s0 = db_s[coarse[best].db_index];
-          state.pairs = evaluate(FramesBetween(db_s, s0 - options.track_window_m,
-                                               s0 + options.track_window_m));
+          state.pairs = evaluate(FramesBetween(db_s, s0 - effective.track_window_m,
+                                               s0 + effective.track_window_m));
           diag.reinitialised = true;
           ++run.num_reinitialisations;
         } else {
@@ -338,7 +352,8 @@ LocalizeRun Localize(const std::string& db_path,
         }
       } else {
         const double predicted = s_est + velocity * (t - t_est);
-        const double margin = options.track_window_m + 0.5 * std::abs(velocity * (t - t_est));
+        const double margin =
+            effective.track_window_m + 0.5 * std::abs(velocity * (t - t_est));
         state.pairs = evaluate(FramesBetween(db_s, predicted - margin, predicted + margin));
       }
     }
@@ -354,8 +369,8 @@ LocalizeRun Localize(const std::string& db_path,
         hi = std::max(hi, db_s[p.db_index]);
       }
       const std::vector<int> more =
-          side > 0 ? FramesBetween(db_s, lo - options.track_window_m, lo - 1e-6)
-                   : FramesBetween(db_s, hi + 1e-6, hi + options.track_window_m);
+          side > 0 ? FramesBetween(db_s, lo - effective.track_window_m, lo - 1e-6)
+                   : FramesBetween(db_s, hi + 1e-6, hi + effective.track_window_m);
       if (more.empty()) break;  // at an end of the route
       std::vector<PairResult> extra = evaluate(more);
       state.pairs.insert(state.pairs.end(), extra.begin(), extra.end());
@@ -376,7 +391,7 @@ LocalizeRun Localize(const std::string& db_path,
       }
       state.online_j = online->Push(row);
       VFitResult fit;
-      const auto [s, fitted] = SubFramePosition(state.pairs, db_s, state.online_j, options, &fit);
+      const auto [s, fitted] = SubFramePosition(state.pairs, db_s, state.online_j, effective, &fit);
       (void)fitted;
       diag.online_fit = fit;
       state.online_s = s;
@@ -486,7 +501,7 @@ LocalizeRun Localize(const std::string& db_path,
       add_row(i, dtw_name, ResultStatus::kOk, db_s[j], j, db_frames[j].position, NAN,
               inliers_at(i, j));
       VFitResult fit;
-      const double s = SubFramePosition(states[i].pairs, db_s, j, options, &fit).first;
+      const double s = SubFramePosition(states[i].pairs, db_s, j, effective, &fit).first;
       add_row(i, fit_name, ResultStatus::kOk, s, j, std::nullopt,
               fit.valid ? fit.rms_residual_m : NAN, fit.num_inliers);
     }

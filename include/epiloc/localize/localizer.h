@@ -35,9 +35,11 @@ struct LocalizeOptions {
   double gps_window_m = 30.0;
   // Database frames evaluated at (re)initialisation: the best retrieval/prior candidates.
   int init_candidates = 8;
-  // Half-width of the window of database frames evaluated around the predicted position.
-  double track_window_m = 4.0;
-  // The V-fit uses database frames within this distance of the DTW match.
+  // Half-width of the window of database frames evaluated around the predicted position (at
+  // least 2.5 database frame spacings; the window is extended when it does not bracket the
+  // vehicle).
+  double track_window_m = 2.0;
+  // The V-fit uses database frames within this distance of the DTW match (at least 2.5 spacings).
   double fit_window_m = 2.6;
   // Consecutive frames without a valid pair after which the track is lost (re-initialised).
   int lost_after_frames = 3;
