@@ -16,6 +16,7 @@ function(epiloc_test module name)
   set(target ${module}_${name}_test)
   add_executable(${target} ${name}_test.cc)
   target_link_libraries(${target} PRIVATE epiloc_${module} ${ARG_LINK} GTest::gtest GTest::gmock GTest::gtest_main)
+  target_include_directories(${target} PRIVATE ${EPILOC_SOURCE_DIR}/tests)
   target_compile_definitions(${target} PRIVATE
     EPILOC_SHARED_DATA_DIR="${EPILOC_SOURCE_DIR}/../shared/data"
     EPILOC_TEST_DATA_DIR="${EPILOC_SOURCE_DIR}/data"

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "epiloc/core/error.h"
+#include "test_util.h"
 
 namespace epiloc {
 namespace {
@@ -27,16 +28,6 @@ Camera KittiCamera() {
   return camera;
 }
 
-template <typename Function>
-std::string ErrorOf(Function function) {
-  try {
-    function();
-  } catch (const Error& error) {
-    return error.what();
-  }
-  ADD_FAILURE() << "no epiloc::Error thrown";
-  return "";
-}
 
 TEST(Camera, UnprojectThenProjectIsIdentityOverTheImage) {
   const Camera camera = KittiCamera();

@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "epiloc/core/error.h"
+#include "test_util.h"
 
 namespace epiloc {
 namespace {
@@ -39,18 +40,6 @@ class CsvFileTest : public ::testing::Test {
   fs::path dir_;
 };
 
-// The message of the Error that `function` throws ("" and a test failure if
-// none).
-template <typename Function>
-std::string ErrorOf(Function function) {
-  try {
-    function();
-  } catch (const Error& error) {
-    return error.what();
-  }
-  ADD_FAILURE() << "no epiloc::Error thrown";
-  return "";
-}
 
 TEST(SplitCsvLine, HandlesQuotesAndEmptyFields) {
   EXPECT_THAT(SplitCsvLine("a,b,c"), ElementsAre("a", "b", "c"));

@@ -16,6 +16,7 @@
 #include <stdexcept>
 
 #include "epiloc/core/error.h"
+#include "test_util.h"
 
 namespace epiloc {
 namespace {
@@ -113,18 +114,6 @@ std::vector<fs::path> MigrationFiles() {
   return files;
 }
 
-// Expects `function` to throw epiloc::Error whose message contains every one of
-// `parts`.
-template <typename Function>
-void ExpectError(Function function, const std::vector<std::string>& parts) {
-  try {
-    function();
-    ADD_FAILURE() << "no exception, expected one mentioning '" << parts.front()
-                  << "'";
-  } catch (const Error& error) {
-    for (const auto& part : parts) EXPECT_THAT(error.what(), HasSubstr(part));
-  }
-}
 
 Camera KittiCamera() {
   Camera camera;

@@ -17,57 +17,14 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "epiloc/core/error.h"
+#include "test_util.h"
 #include "epiloc/eval/result.h"
 #include "epiloc/geo/geodetic.h"
 #include "epiloc/io/drive.h"
 
 namespace epiloc {
 
-// A fresh directory removed when the object goes away.
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const std::string name = std::string("epiloc_eval_") + (info ? info->name() : "test") + "_" +
-                             std::to_string(::getpid()) + "_" + std::to_string(counter++);
-    path_ = std::filesystem::temp_directory_path() / name;
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code error;
-    std::filesystem::remove_all(path_, error);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
 
-  std::string str() const { return path_.string(); }
-  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  std::filesystem::path path_;
-};
-
-inline void WriteText(const std::string& path, const std::string& text) {
-  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
-  std::ofstream out(path);
-  out << text;
-  ASSERT_TRUE(out.good()) << path;
-}
-
-// Runs `f` and expects an epiloc::Error whose message contains every one of `parts`.
-template <typename F>
-void ExpectError(F&& f, const std::vector<std::string>& parts) {
-  try {
-    f();
-    ADD_FAILURE() << "no Error thrown, expected one containing '" << parts.front() << "'";
-  } catch (const Error& e) {
-    for (const auto& part : parts) {
-      EXPECT_THAT(e.what(), ::testing::HasSubstr(part)) << "message: " << e.what();
-    }
-  }
-}
 
 // The origin of the synthetic tests.
 inline Geodetic TestOrigin() { return {49.0, 8.4, 100.0}; }

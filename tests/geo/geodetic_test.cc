@@ -11,6 +11,7 @@
 #include <random>
 
 #include "epiloc/core/error.h"
+#include "test_util.h"
 
 namespace epiloc {
 namespace {
@@ -21,16 +22,6 @@ using ::testing::HasSubstr;
 // antimeridian compare.
 double LonDiffDeg(double a, double b) { return std::remainder(a - b, 360.0); }
 
-template <typename Function>
-std::string ErrorOf(Function function) {
-  try {
-    function();
-  } catch (const Error& error) {
-    return error.what();
-  }
-  ADD_FAILURE() << "no epiloc::Error thrown";
-  return "";
-}
 
 TEST(EnuFrame, RoundTripIsLosslessAroundTheGlobe) {
   std::mt19937 rng(1);

@@ -13,42 +13,10 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "epiloc/core/error.h"
+#include "test_util.h"
 
 namespace epiloc {
 
-// A fresh directory removed when the object goes away.
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const std::string name = std::string("epiloc_io_") + (info ? info->name() : "test") + "_" +
-                             std::to_string(::getpid()) + "_" + std::to_string(counter++);
-    path_ = std::filesystem::temp_directory_path() / name;
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code error;
-    std::filesystem::remove_all(path_, error);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-
-  std::string str() const { return path_.string(); }
-  // dir/name as a string.
-  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  std::filesystem::path path_;
-};
-
-inline void WriteText(const std::string& path, const std::string& text) {
-  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
-  std::ofstream out(path);
-  out << text;
-  ASSERT_TRUE(out.good()) << path;
-}
 
 // A deterministic test pattern: value depends on (x, y, channel, seed).
 inline cv::Mat Pattern(int width, int height, int type, int seed = 0) {
@@ -74,17 +42,5 @@ inline void WriteImage(const std::string& path, const cv::Mat& image) {
   ASSERT_TRUE(cv::imwrite(path, image)) << path;
 }
 
-// Runs `f` and expects an epiloc::Error whose message contains every one of `parts`.
-template <typename F>
-void ExpectError(F&& f, const std::vector<std::string>& parts) {
-  try {
-    f();
-    ADD_FAILURE() << "no Error thrown, expected one containing '" << parts.front() << "'";
-  } catch (const Error& e) {
-    for (const auto& part : parts) {
-      EXPECT_THAT(e.what(), ::testing::HasSubstr(part)) << "message: " << e.what();
-    }
-  }
-}
 
 }  // namespace epiloc

@@ -1,0 +1,78 @@
+// Helpers shared by the test suites: a temporary directory, text files and expectations on
+// epiloc::Error messages.
+#pragma once
+
+#include <unistd.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+
+// A fresh directory named after the running test, removed when the object goes away.
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    const std::string name = std::string("epiloc_") +
+                             (info ? std::string(info->test_suite_name()) + "_" + info->name()
+                                   : std::string("test")) +
+                             "_" + std::to_string(::getpid()) + "_" + std::to_string(counter++);
+    path_ = std::filesystem::temp_directory_path() / name;
+    std::filesystem::remove_all(path_);
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code error;
+    std::filesystem::remove_all(path_, error);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+
+  std::string str() const { return path_.string(); }
+  // dir/name as a string.
+  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// Writes `text` to `path`, creating its directory.
+inline void WriteText(const std::string& path, const std::string& text) {
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+  std::ofstream out(path);
+  out << text;
+  ASSERT_TRUE(out.good()) << path;
+}
+
+// The message of the epiloc::Error `function` throws ("" and a test failure if none).
+template <typename Function>
+std::string ErrorOf(Function&& function) {
+  try {
+    function();
+  } catch (const Error& error) {
+    return error.what();
+  }
+  ADD_FAILURE() << "no epiloc::Error thrown";
+  return "";
+}
+
+// Runs `function` and expects an epiloc::Error whose message contains every one of `parts`.
+template <typename Function>
+void ExpectError(Function&& function, const std::vector<std::string>& parts) {
+  const std::string message = ErrorOf(function);
+  for (const std::string& part : parts) {
+    EXPECT_THAT(message, ::testing::HasSubstr(part)) << "message: " << message;
+  }
+}
+
+}  // namespace epiloc
