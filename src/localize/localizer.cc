@@ -106,7 +106,7 @@ int OutsideWindow(const std::vector<PairResult>& pairs) {
 
 // Sub-frame position around database frame j: the V-fit over valid pairs within the window;
 // falls back to s_j when the fit is not possible or lands outside the window.
-std::pair<double, bool> SubFramePosition(const std::vector<PairResult>& pairs,
+double SubFramePosition(const std::vector<PairResult>& pairs,
                                          const std::vector<double>& db_s,
                                          int j,
                                          const LocalizeOptions& options,
@@ -123,7 +123,7 @@ std::pair<double, bool> SubFramePosition(const std::vector<PairResult>& pairs,
   VFitResult fit;
   if (static_cast<int>(points.size()) >= options.vfit.min_points) fit = FitV(points, options.vfit);
   if (fit_out) *fit_out = fit;
-  if (fit.valid && std::abs(fit.l_m - db_s[j]) <= options.fit_window_m) return {fit.l_m, true};
+  if (fit.valid && std::abs(fit.l_m - db_s[j]) <= options.fit_window_m) return fit.l_m;
   // Too few points for the fit (e.g. at a route end): the sign change between the two database
   // cameras that bracket the vehicle, interpolated linearly in d (eq. 3 with two points).
   std::sort(points.begin(), points.end(),
@@ -142,9 +142,9 @@ std::pair<double, bool> SubFramePosition(const std::vector<PairResult>& pairs,
   }
   if (best_a) {
     const double w = best_a->d / (best_a->d + best_b->d);
-    return {best_a->s_m + w * (best_b->s_m - best_a->s_m), true};
+    return best_a->s_m + w * (best_b->s_m - best_a->s_m);
   }
-  return {db_s[j], false};
+  return db_s[j];
 }
 
 }  // namespace
@@ -391,8 +391,7 @@ LocalizeRun Localize(const std::string& db_path,
       }
       state.online_j = online->Push(row);
       VFitResult fit;
-      const auto [s, fitted] = SubFramePosition(state.pairs, db_s, state.online_j, effective, &fit);
-      (void)fitted;
+      const double s = SubFramePosition(state.pairs, db_s, state.online_j, effective, &fit);
       diag.online_fit = fit;
       state.online_s = s;
       state.online_ok = true;
@@ -501,7 +500,7 @@ LocalizeRun Localize(const std::string& db_path,
       add_row(i, dtw_name, ResultStatus::kOk, db_s[j], j, db_frames[j].position, NAN,
               inliers_at(i, j));
       VFitResult fit;
-      const double s = SubFramePosition(states[i].pairs, db_s, j, effective, &fit).first;
+      const double s = SubFramePosition(states[i].pairs, db_s, j, effective, &fit);
       add_row(i, fit_name, ResultStatus::kOk, s, j, std::nullopt,
               fit.valid ? fit.rms_residual_m : NAN, fit.num_inliers);
     }
