@@ -45,20 +45,39 @@ cv::Mat ToGrey8(const cv::Mat& image) {
   return grey;
 }
 
+namespace {
+
+// Scale factor ExtractSift applies to an image before OpenCV's SIFT.
+double DetectionScale(const SiftOptions& options, int width, int height) {
+  double scale = 1.0;
+  const int longer = std::max(width, height);
+  if (options.max_image_size > 0 && longer > options.max_image_size) {
+    scale = static_cast<double>(options.max_image_size) / longer;
+  }
+  if (!options.upsampled_octave) scale *= 0.5;
+  return scale;
+}
+
+}  // namespace
+
+double SmallestKeypointSizePx(const SiftOptions& options, int width, int height) {
+  options.Check();
+  // In OpenCV's pyramid of the doubled image, octave o >= 0 reports sizes with a factor 2^o; the
+  // doubled octave itself is halved back (factor 1/2), so its smallest size is sigma * 2^(0.5/n).
+  const double smallest = options.sigma * std::pow(2.0, 0.5 / options.num_octave_layers);
+  return smallest / DetectionScale(options, width, height);
+}
+
 FeatureSet ExtractSift(const cv::Mat& image, const SiftOptions& options) {
   options.Check();
   cv::Mat grey = ToGrey8(image);
-  double scale = 1.0;
-  const int longer = std::max(grey.cols, grey.rows);
-  if (options.max_image_size > 0 && longer > options.max_image_size) {
-    scale = static_cast<double>(options.max_image_size) / longer;
-    cv::resize(grey, grey, cv::Size(), scale, scale, cv::INTER_AREA);
-  }
+  const double scale = DetectionScale(options, grey.cols, grey.rows);
+  if (scale != 1.0) cv::resize(grey, grey, cv::Size(), scale, scale, cv::INTER_AREA);
 
   // OpenCV's nfeatures keeps the strongest responses; descriptors directly as uint8.
-  auto sift = cv::SIFT::create(options.max_num_features, options.num_octave_layers,
-                               options.contrast_threshold, options.edge_threshold, options.sigma,
-                               CV_8U);
+  auto sift =
+      cv::SIFT::create(options.max_num_features, options.num_octave_layers,
+                       options.contrast_threshold, options.edge_threshold, options.sigma, CV_8U);
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
   sift->detectAndCompute(grey, cv::noArray(), keypoints, descriptors);
@@ -79,12 +98,15 @@ FeatureSet ExtractSift(const cv::Mat& image, const SiftOptions& options) {
   const int n = static_cast<int>(keypoints.size());
   features.keypoints.resize(n, 4);
   features.descriptors.resize(n, 128);
-  // Pixel centres sit at integer coordinates in both images, so the downscale maps
-  // x -> (x + 0.5) / scale - 0.5.
+  // OpenCV doubles the image with pixel centres mapping x_doubled = 2 x + 0.5, but reports
+  // x_doubled / 2 (4.6: sift.dispatch.cpp, createInitialImage and the keypoint scale 0.5): its
+  // coordinates are 0.25 px too large; kOpenCvShift undoes that. Pixel centres sit at integer
+  // coordinates in both images, so the downscale maps x -> (x + 0.5) / scale - 0.5.
+  constexpr double kOpenCvShift = -0.25;
   for (int i = 0; i < n; ++i) {
     const cv::KeyPoint& kp = keypoints[order[i]];
-    features.keypoints(i, 0) = static_cast<float>((kp.pt.x + 0.5) / scale - 0.5);
-    features.keypoints(i, 1) = static_cast<float>((kp.pt.y + 0.5) / scale - 0.5);
+    features.keypoints(i, 0) = static_cast<float>((kp.pt.x + kOpenCvShift + 0.5) / scale - 0.5);
+    features.keypoints(i, 1) = static_cast<float>((kp.pt.y + kOpenCvShift + 0.5) / scale - 0.5);
     features.keypoints(i, 2) = static_cast<float>(kp.size / scale);
     features.keypoints(i, 3) = static_cast<float>(kp.angle * M_PI / 180.0);
   }

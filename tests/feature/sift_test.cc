@@ -1,5 +1,6 @@
 #include "epiloc/feature/sift.h"
 
+#include <cmath>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -53,7 +54,7 @@ TEST(Sift, FindsBlobCentresInOriginalPixelCoordinates) {
     const FeatureSet features = ExtractSift(image, options);
     ASSERT_GE(features.size(), static_cast<int>(centres.size()));
     for (const auto& c : centres) {
-      EXPECT_LT(NearestKeypointDistance(features, c), 1.0)
+      EXPECT_LT(NearestKeypointDistance(features, c), 0.15)
           << "blob at " << c << " max_image_size " << options.max_image_size;
     }
   }
@@ -98,6 +99,33 @@ TEST(Sift, ColourAnd16BitImagesGiveTheSameFeaturesAsGrey) {
   EXPECT_EQ(a.size(), c.size());
   EXPECT_TRUE(a.keypoints.isApprox(b.keypoints));
   EXPECT_TRUE(a.keypoints.isApprox(c.keypoints));
+}
+
+// Without the upsampled octave the image is halved first: no keypoint is finer than
+// SmallestKeypointSizePx (twice the upsampled octave's), blob centres still land in original
+// pixel coordinates, and the finest keypoints found come close to the bound.
+TEST(Sift, WithoutUpsampledOctaveSizesStayAboveTheBound) {
+  const cv::Mat image = TextureImage(640, 360, 7);
+  for (bool upsampled : {true, false}) {
+    SiftOptions options;
+    options.max_num_features = 0;
+    options.upsampled_octave = upsampled;
+    const double bound = SmallestKeypointSizePx(options, image.cols, image.rows);
+    EXPECT_NEAR(bound, (upsampled ? 1.0 : 2.0) * 1.6 * std::pow(2.0, 0.5 / 3), 1e-12);
+    const FeatureSet features = ExtractSift(image, options);
+    ASSERT_GT(features.size(), 100);
+    const float smallest = features.keypoints.col(2).minCoeff();
+    EXPECT_GE(smallest, bound * 0.999) << "upsampled " << upsampled;
+    EXPECT_LT(smallest, bound * 1.3) << "upsampled " << upsampled;
+  }
+  const std::vector<cv::Point2d> centres = {{100.25, 80.5}, {300.75, 200.0}, {500.5, 120.25}};
+  SiftOptions half;
+  half.upsampled_octave = false;
+  const FeatureSet blobs = ExtractSift(BlobImage(640, 360, centres, 9.0), half);
+  for (const cv::Point2d& c : centres) EXPECT_LT(NearestKeypointDistance(blobs, c), 0.15);
+  // Downscaling for a size limit multiplies the bound by the inverse of the scale.
+  half.max_image_size = 320;
+  EXPECT_NEAR(SmallestKeypointSizePx(half, 640, 360), 4.0 * 1.6 * std::pow(2.0, 0.5 / 3), 1e-12);
 }
 
 TEST(Sift, RejectsInvalidInput) {

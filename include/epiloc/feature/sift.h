@@ -15,6 +15,11 @@ struct SiftOptions {
   // Images whose longer side exceeds this are downscaled for detection; keypoints are returned
   // in the original image's pixel coordinates (0 = never downscale).
   int max_image_size = 1600;
+  // Detect in Lowe's upsampled octave (-1) too: the image doubled before the pyramid, which
+  // finds the finest-scale features but costs about three times the rest of the pyramid. When
+  // false the (possibly downscaled) image is halved first, so OpenCV's doubling restores its
+  // resolution: the result is octaves 0, 1, ... of the image, in its pixel coordinates.
+  bool upsampled_octave = true;
   // Scale-space layers per octave (Lowe: 3).
   int num_octave_layers = 3;
   // Contrast threshold on the DoG response; lower finds more features in low-contrast images
@@ -32,6 +37,11 @@ struct SiftOptions {
 // Extracts SIFT features from an 8-bit grey or colour image (colour is converted to grey).
 // Throws Error for an empty image or an unsupported pixel type.
 FeatureSet ExtractSift(const cv::Mat& image, const SiftOptions& options);
+
+// The smallest keypoint size (diameter, pixels of the input image) ExtractSift can return for a
+// width x height image with these options: OpenCV reports size = 2 * sigma * 2^((layer + offset) /
+// num_octave_layers) per octave above the upsampled one, with layer >= 1 and offset >= -0.5.
+double SmallestKeypointSizePx(const SiftOptions& options, int width, int height);
 
 // 8-bit grey view of an image: colour converted (BGR order), 16-bit scaled to 8-bit.
 cv::Mat ToGrey8(const cv::Mat& image);
