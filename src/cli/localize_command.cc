@@ -48,6 +48,16 @@ int RunLocalize(int argc, char** argv) {
   app.add_option("--query-max-image-size", options.sift.max_image_size,
                  "Query frames whose longer side exceeds this are downscaled for SIFT (0 = never)")
       ->capture_default_str();
+  app.add_option("--query-upsampled-octave", options.sift.upsampled_octave,
+                 "Query SIFT also detects in the upsampled octave (finest features, ~2.5x the "
+                 "extraction time)")
+      ->capture_default_str();
+  std::string robust = "fast";
+  app.add_option("--ransac", robust,
+                 "Robust essential-matrix estimator per pair: fast (USAC LO-RANSAC) or magsac "
+                 "(MAGSAC++, slower)")
+      ->check(CLI::IsMember({"fast", "magsac"}))
+      ->capture_default_str();
   std::string matcher = "window";
   app.add_option("--matcher", matcher,
                  "window: one FLANN search per query frame over its database window; pairs: one "
@@ -67,6 +77,8 @@ int RunLocalize(int argc, char** argv) {
   options.mode = ParseMode(mode);
   options.use_gps = !no_gps;
   options.pairs.window_matching = matcher == "window";
+  options.pairs.epipole.robust =
+      robust == "fast" ? EpipoleOptions::Robust::kFast : EpipoleOptions::Robust::kMagsac;
 
   Progress progress("localize", 0);
   const LocalizeRun run = Localize(db_path, drive_dir, options, progress.Callback());

@@ -119,20 +119,20 @@ EpipoleResult EstimateEpipole(const std::vector<Eigen::Vector2d>& query_pixels,
                   (db_px[i].y - db_camera.cy) / db_camera.fy};
   }
 
+  const int usac_method =
+      options.robust == EpipoleOptions::Robust::kFast ? cv::USAC_FAST : cv::USAC_MAGSAC;
   cv::Mat mask;
   cv::Mat essential;
   double fundamental_e_x = std::numeric_limits<double>::quiet_NaN();
   try {
     if (options.model == EpipoleOptions::Model::kEssential) {
-      essential = cv::findEssentialMat(query_norm, db_norm, cv::Mat::eye(3, 3, CV_64F),
-                                       cv::USAC_MAGSAC, options.confidence,
-                                       options.max_error_px / query_camera.fx,
+      essential = cv::findEssentialMat(query_norm, db_norm, cv::Mat::eye(3, 3, CV_64F), usac_method,
+                                       options.confidence, options.max_error_px / query_camera.fx,
                                        options.max_iterations, mask);
       if (essential.rows > 3) essential = essential.rowRange(0, 3).clone();
     } else {
-      const cv::Mat f = cv::findFundamentalMat(query_px, db_px, cv::USAC_MAGSAC,
-                                               options.max_error_px, options.confidence,
-                                               options.max_iterations, mask);
+      const cv::Mat f = cv::findFundamentalMat(query_px, db_px, usac_method, options.max_error_px,
+                                               options.confidence, options.max_iterations, mask);
       if (f.rows == 3 && f.cols == 3) {
         Eigen::Matrix3d fe;
         cv::cv2eigen(f, fe);
@@ -157,12 +157,11 @@ EpipoleResult EstimateEpipole(const std::vector<Eigen::Vector2d>& query_pixels,
   {
     const bool is_essential = options.model == EpipoleOptions::Model::kEssential;
     Eigen::Matrix3d polished;
-    const bool ok = is_essential
-                        ? PolishOnInliers(query_norm, db_norm,
-                                          options.max_error_px / query_camera.fx, true, polished,
-                                          mask)
-                        : PolishOnInliers(query_px, db_px, options.max_error_px, false, polished,
-                                          mask);
+    const bool ok =
+        is_essential
+            ? PolishOnInliers(query_norm, db_norm, options.max_error_px / query_camera.fx, true,
+                              polished, mask)
+            : PolishOnInliers(query_px, db_px, options.max_error_px, false, polished, mask);
     if (!ok) {
       result.failure = "too few inliers";
       return result;
@@ -172,8 +171,8 @@ EpipoleResult EstimateEpipole(const std::vector<Eigen::Vector2d>& query_pixels,
     } else {
       const Eigen::JacobiSVD<Eigen::Matrix3d> svd(polished, Eigen::ComputeFullV);
       const Eigen::Vector3d e = svd.matrixV().col(2);
-      fundamental_e_x = e.z() != 0.0 ? e.x() / e.z() - query_camera.cx
-                                     : std::numeric_limits<double>::infinity();
+      fundamental_e_x =
+          e.z() != 0.0 ? e.x() / e.z() - query_camera.cx : std::numeric_limits<double>::infinity();
       essential = ToCv(db_camera.K().transpose() * polished * query_camera.K());
     }
   }
@@ -215,7 +214,8 @@ EpipoleResult EstimateEpipole(const std::vector<Eigen::Vector2d>& query_pixels,
   parallax.reserve(in_front);
   for (int i = 0; i < n; ++i) {
     if (!result.inlier_mask[i]) continue;
-    const Eigen::Vector3d a = (r * Eigen::Vector3d(query_norm[i].x, query_norm[i].y, 1.0)).normalized();
+    const Eigen::Vector3d a =
+        (r * Eigen::Vector3d(query_norm[i].x, query_norm[i].y, 1.0)).normalized();
     const Eigen::Vector3d b = Eigen::Vector3d(db_norm[i].x, db_norm[i].y, 1.0).normalized();
     parallax.push_back(std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180.0 / M_PI);
   }
@@ -228,13 +228,13 @@ EpipoleResult EstimateEpipole(const std::vector<Eigen::Vector2d>& query_pixels,
   const Eigen::Vector3d& q = result.db_center_in_query;
   if (options.model == EpipoleOptions::Model::kFundamental) {
     result.e_x_px = fundamental_e_x;
-    result.distance = std::isfinite(fundamental_e_x) && fundamental_e_x != 0.0
-                          ? 1.0 / std::abs(fundamental_e_x)
-                          : (std::isinf(fundamental_e_x) ? 0.0
-                                                         : std::numeric_limits<double>::infinity());
+    result.distance =
+        std::isfinite(fundamental_e_x) && fundamental_e_x != 0.0
+            ? 1.0 / std::abs(fundamental_e_x)
+            : (std::isinf(fundamental_e_x) ? 0.0 : std::numeric_limits<double>::infinity());
   } else {
-    result.e_x_px = q.z() != 0.0 ? query_camera.fx * q.x() / q.z()
-                                 : std::numeric_limits<double>::infinity();
+    result.e_x_px =
+        q.z() != 0.0 ? query_camera.fx * q.x() / q.z() : std::numeric_limits<double>::infinity();
     result.distance = EpipolarDistance(q, query_camera.fx);
   }
   if (!std::isfinite(result.distance)) {

@@ -107,10 +107,10 @@ int OutsideWindow(const std::vector<PairResult>& pairs) {
 // Sub-frame position around database frame j: the V-fit over valid pairs within the window;
 // falls back to s_j when the fit is not possible or lands outside the window.
 double SubFramePosition(const std::vector<PairResult>& pairs,
-                                         const std::vector<double>& db_s,
-                                         int j,
-                                         const LocalizeOptions& options,
-                                         VFitResult* fit_out) {
+                        const std::vector<double>& db_s,
+                        int j,
+                        const LocalizeOptions& options,
+                        VFitResult* fit_out) {
   std::vector<VFitPoint> points;
   for (const PairResult& p : pairs) {
     if (!p.valid || std::abs(db_s[p.db_index] - db_s[j]) > options.fit_window_m) continue;
@@ -168,6 +168,12 @@ LocalizeOptions::Mode ParseMode(const std::string& name) {
   Throw("--mode '{}': expected fixed, free or online", name);
 }
 
+SiftOptions LocalizeOptions::QuerySiftDefaults() {
+  SiftOptions sift;
+  sift.upsampled_octave = false;
+  return sift;
+}
+
 void LocalizeOptions::Check() const {
   EPILOC_CHECK(gps_window_m > 0, "localize: gps_window_m must be > 0");
   EPILOC_CHECK(init_candidates >= 2, "localize: init_candidates must be >= 2");
@@ -220,7 +226,18 @@ LocalizeRun Localize(const std::string& db_path,
   LocalizeOptions effective = options;
   effective.track_window_m = std::max(options.track_window_m, 2.5 * median_spacing);
   effective.fit_window_m = std::max(options.fit_window_m, 2.5 * median_spacing);
-  PairEvaluator evaluator(db, db_frames, options.pairs);
+  const Drive drive = LoadDrive(drive_dir);
+  const Undistorter undistorter(drive.camera);
+  const Camera& query_camera = undistorter.undistorted_camera();
+  PairOptions pair_options = options.pairs;
+  if (pair_options.min_db_feature_angle_rad == 0) {
+    // Database features finer than 3/4 of the finest the query extraction detects cannot match
+    // it (the margin allows for the scale change between the two viewpoints).
+    pair_options.min_db_feature_angle_rad =
+        0.75 * SmallestKeypointSizePx(options.sift, query_camera.width, query_camera.height) /
+        query_camera.fx;
+  }
+  PairEvaluator evaluator(db, db_frames, pair_options);
 
   // Whole-route image retrieval places the drive without GPS and recovers a lost track.
   std::optional<GlobalDescriptorModel> retrieval_model;
@@ -237,9 +254,6 @@ LocalizeRun Localize(const std::string& db_path,
     spdlog::warn("{}: no retrieval index; a lost track re-initialises from GPS only", db_path);
   }
 
-  const Drive drive = LoadDrive(drive_dir);
-  const Undistorter undistorter(drive.camera);
-  const Camera& query_camera = undistorter.undistorted_camera();
   const FrameReader reader(drive);
   const int num_frames = static_cast<int>(drive.frames.size());
   EPILOC_CHECK(num_frames >= 1, "{}: the drive has no frames", drive.dir);
@@ -328,8 +342,8 @@ LocalizeRun Localize(const std::string& db_path,
           }
         }
         if (sweep.empty() && state.gps) {
-          const std::vector<int> window = FramesBetween(
-              db_s, state.gps->s_m - options.gps_window_m, state.gps->s_m + options.gps_window_m);
+          const std::vector<int> window = FramesBetween(db_s, state.gps->s_m - options.gps_window_m,
+                                                        state.gps->s_m + options.gps_window_m);
           const size_t step = std::max<size_t>(1, window.size() / (2 * options.init_candidates));
           for (size_t k = 0; k < window.size(); k += step) sweep.push_back(window[k]);
         }
@@ -343,8 +357,8 @@ LocalizeRun Localize(const std::string& db_path,
         }
         if (best >= 0) {
           const double s0 = db_s[coarse[best].db_index];
-          state.pairs = evaluate(FramesBetween(db_s, s0 - effective.track_window_m,
-                                               s0 + effective.track_window_m));
+          state.pairs = evaluate(
+              FramesBetween(db_s, s0 - effective.track_window_m, s0 + effective.track_window_m));
           diag.reinitialised = true;
           ++run.num_reinitialisations;
         } else {
@@ -352,8 +366,7 @@ LocalizeRun Localize(const std::string& db_path,
         }
       } else {
         const double predicted = s_est + velocity * (t - t_est);
-        const double margin =
-            effective.track_window_m + 0.5 * std::abs(velocity * (t - t_est));
+        const double margin = effective.track_window_m + 0.5 * std::abs(velocity * (t - t_est));
         state.pairs = evaluate(FramesBetween(db_s, predicted - margin, predicted + margin));
       }
     }
@@ -419,9 +432,9 @@ LocalizeRun Localize(const std::string& db_path,
 
   // Result rows.
   run.results.extra_columns = {"fit_residual_m", "inliers"};
-  auto add_row = [&](int i, const std::string& method, ResultStatus status,
-                     std::optional<double> s, int db_index, std::optional<Geodetic> position,
-                     double residual_m, int inliers) {
+  auto add_row = [&](int i, const std::string& method, ResultStatus status, std::optional<double> s,
+                     int db_index, std::optional<Geodetic> position, double residual_m,
+                     int inliers) {
     ResultRow r;
     r.frame = drive.frames[i].frame;
     r.timestamp_s = drive.frames[i].timestamp_s;
@@ -489,8 +502,8 @@ LocalizeRun Localize(const std::string& db_path,
       spdlog::warn("{} alignment failed: {}", dtw_name, path.failure);
     }
     for (int i = 0; i < num_frames; ++i) {
-      const bool ok = path.valid && !states[i].off_route && i >= first &&
-                      (!fixed || i <= last) && path.db_index[i] >= 0;
+      const bool ok = path.valid && !states[i].off_route && i >= first && (!fixed || i <= last) &&
+                      path.db_index[i] >= 0;
       if (!ok) {
         add_row(i, dtw_name, lost_status(i), std::nullopt, -1, std::nullopt, NAN, -1);
         add_row(i, fit_name, lost_status(i), std::nullopt, -1, std::nullopt, NAN, -1);
@@ -528,8 +541,8 @@ LocalizeRun Localize(const std::string& db_path,
 
 void WriteDiagnosticsCsv(const LocalizeRun& run, const std::string& path) {
   CsvWriter out(path, {"frame", "timestamp_s", "gps_s_m", "db_frame", "db_s_m", "valid", "d",
-                       "signed_d", "matches", "inliers", "failure", "online_db_frame",
-                       "fit_l_m", "fit_residual_m", "reinitialised", "frame_seconds"});
+                       "signed_d", "matches", "inliers", "failure", "online_db_frame", "fit_l_m",
+                       "fit_residual_m", "reinitialised", "frame_seconds"});
   for (const FrameDiagnostics& diag : run.diagnostics) {
     const std::string online_frame =
         diag.online_db_index >= 0 ? std::to_string(run.db_frame_numbers[diag.online_db_index]) : "";

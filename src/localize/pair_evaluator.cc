@@ -10,6 +10,7 @@ namespace epiloc {
 
 void PairOptions::Check() const {
   EPILOC_CHECK(max_db_features >= 0, "localize: max_db_features must be >= 0");
+  EPILOC_CHECK(min_db_feature_angle_rad >= 0, "localize: min_db_feature_angle_rad must be >= 0");
   EPILOC_CHECK(cache_frames >= 1, "localize: cache_frames must be >= 1");
   match.Check();
   epipole.Check();
@@ -43,6 +44,21 @@ std::shared_ptr<const PairEvaluator::CachedFrame> PairEvaluator::Load(int db_ind
   const image_t image_id = frames_[db_index].image_id;
   frame->keypoints = db_.ReadKeypoints(image_id);
   frame->descriptors = db_.ReadDescriptors(image_id);
+  if (options_.min_db_feature_angle_rad > 0) {
+    // Drop the features too fine for the query, keeping the strongest-first order.
+    const double min_size_px = options_.min_db_feature_angle_rad * DbCamera(db_index).fx;
+    int kept = 0;
+    for (int r = 0; r < frame->keypoints.rows(); ++r) {
+      if (frame->keypoints(r, 2) < min_size_px) continue;
+      if (kept != r) {
+        frame->keypoints.row(kept) = frame->keypoints.row(r);
+        frame->descriptors.row(kept) = frame->descriptors.row(r);
+      }
+      ++kept;
+    }
+    frame->keypoints.conservativeResize(kept, Eigen::NoChange);
+    frame->descriptors.conservativeResize(kept, Eigen::NoChange);
+  }
   const int keep = options_.max_db_features > 0
                        ? std::min<int>(options_.max_db_features, frame->keypoints.rows())
                        : static_cast<int>(frame->keypoints.rows());
@@ -105,7 +121,9 @@ PairResult PairEvaluator::EvaluateOne(const Camera& query_camera,
   return EpipoleOfMatches(query_camera, query_keypoints, db_index, *db_frame, rows);
 }
 
-void PairEvaluator::ParallelFor(size_t n, int num_threads, const std::function<void(size_t)>& task) {
+void PairEvaluator::ParallelFor(size_t n,
+                                int num_threads,
+                                const std::function<void(size_t)>& task) {
   std::atomic<size_t> next{0};
   std::exception_ptr failure;
   std::mutex failure_mutex;
@@ -149,8 +167,8 @@ std::vector<PairResult> PairEvaluator::EvaluateWindow(const Camera& query_camera
     // Aliasing pointer: keeps the cached frame alive while the matcher holds its descriptors.
     return std::shared_ptr<const FeatureDescriptors>(frame, &frame->descriptors);
   });
-  const std::unordered_map<int, std::vector<WindowMatch>> matches =
-      window_matcher_.Match(query.descriptors, -1, options_.match.ratio, options_.match.num_checks);
+  const std::unordered_map<int, std::vector<WindowMatch>> matches = window_matcher_.Match(
+      query.descriptors, -1, options_.match.ratio, options_.match.num_checks, num_threads);
   std::vector<PairResult> results(db_indices.size());
   ParallelFor(db_indices.size(), num_threads, [&](size_t k) {
     const int db_index = db_indices[k];

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <thread>
 
 #include <flann/flann.hpp>
 
@@ -183,8 +184,13 @@ int WindowMatcher::NumDescriptors() const {
 int WindowMatcher::NumRebuilds() const { return impl_->rebuilds; }
 
 std::unordered_map<int, std::vector<WindowMatch>> WindowMatcher::Match(
-    const FeatureDescriptors& query, int max_rows, double ratio, int checks) const {
+    const FeatureDescriptors& query,
+    int max_rows,
+    double ratio,
+    int checks,
+    int num_threads) const {
   EPILOC_CHECK(ratio > 0 && ratio <= 1, "window matcher: ratio must be in (0, 1], got {}", ratio);
+  EPILOC_CHECK(num_threads >= 1, "window matcher: num_threads must be >= 1, got {}", num_threads);
   EPILOC_CHECK(checks >= 1, "window matcher: checks must be >= 1, got {}", checks);
   const Impl& impl = *impl_;
   std::unordered_map<int, std::vector<WindowMatch>> matches;
@@ -199,13 +205,25 @@ std::unordered_map<int, std::vector<WindowMatch>> WindowMatcher::Match(
   const size_t num_results = static_cast<size_t>(num_query) * k;
   std::vector<size_t> ids(num_results, std::numeric_limits<size_t>::max());
   std::vector<float> distances(num_results, std::numeric_limits<float>::infinity());
-  flann::Matrix<float> query_matrix(query_rows.data(), num_query, 128);
-  flann::Matrix<size_t> id_matrix(ids.data(), num_query, k);
-  flann::Matrix<float> distance_matrix(distances.data(), num_query, k);
   flann::SearchParams params(checks);
-  params.cores = 1;  // callers parallelise over query frames
+  params.cores = 1;  // FLANN's own threading needs OpenMP; blocks of rows go to our threads
   params.sorted = true;
-  impl.index->knnSearch(query_matrix, id_matrix, distance_matrix, k, params);
+  // Searching the (read-only) trees from several threads at once is safe.
+  auto search = [&](int begin, int end) {
+    if (begin >= end) return;
+    const size_t offset = static_cast<size_t>(begin);
+    flann::Matrix<float> query_matrix(query_rows.data() + offset * 128, end - begin, 128);
+    flann::Matrix<size_t> id_matrix(ids.data() + offset * k, end - begin, k);
+    flann::Matrix<float> distance_matrix(distances.data() + offset * k, end - begin, k);
+    impl.index->knnSearch(query_matrix, id_matrix, distance_matrix, k, params);
+  };
+  const int threads = std::min(num_threads, std::max(1, num_query / 64));
+  std::vector<std::thread> workers;
+  for (int t = 1; t < threads; ++t) {
+    workers.emplace_back(search, num_query * t / threads, num_query * (t + 1) / threads);
+  }
+  search(0, num_query / threads);
+  for (std::thread& worker : workers) worker.join();
 
   // Per slot and database row, the closest query row that passed the ratio test.
   const size_t num_slots = impl.slot_db_index.size();

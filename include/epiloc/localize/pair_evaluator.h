@@ -22,6 +22,10 @@ namespace epiloc {
 struct PairOptions {
   // Strongest database features used per frame (prefix of the stored rows; 0 = all).
   int max_db_features = 2000;
+  // Database features whose SIFT scale, as an angle (keypoint size / fx, radians), is below this
+  // are skipped before the strongest max_db_features are taken: features finer than the query
+  // extraction can detect cannot match, and would crowd out those that can (0 = keep all).
+  double min_db_feature_angle_rad = 0.0;
   // Database frames kept in memory; older ones are reloaded from SQLite when needed again.
   int cache_frames = 96;
   MatchOptions match;
@@ -99,8 +103,9 @@ class PairEvaluator {
   WindowMatcher window_matcher_;
   mutable std::mutex mutex_;
   mutable std::list<int> lru_;  // most recent first
-  mutable std::unordered_map<int, std::pair<std::shared_ptr<const CachedFrame>,
-                                            std::list<int>::iterator>> cache_;
+  mutable std::
+      unordered_map<int, std::pair<std::shared_ptr<const CachedFrame>, std::list<int>::iterator>>
+          cache_;
 };
 
 }  // namespace epiloc
