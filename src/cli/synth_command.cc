@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cstdio>
 
 #include "cli_common.h"
@@ -40,11 +41,21 @@ int RunSynth(int argc, char** argv) {
   app.add_flag("--no-distortion", no_distortion, "Query camera without lens distortion");
   app.add_flag("--clean-query", clean_query,
                "Query frames without noise, blur, exposure change or wobble");
+  double query_length_m = 0.0;
+  app.add_option("--query-length-m", query_length_m,
+                 "Query drives only this far from its start (0 = to 10 m before the route's end)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   app.add_flag("--no-lidar", no_lidar, "Skip the LiDAR map");
   app.add_option("--threads", options.num_threads, "Rendering threads")->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
 
   options.lidar = !no_lidar;
+  if (query_length_m > 0) {
+    options.query.end_offset_m = std::max(
+        options.query.end_offset_m,
+        options.length_m - options.query.start_offset_m - query_length_m);
+  }
   if (no_distortion) options.query.camera.distortion.fill(0.0);
   if (clean_query) {
     options.query.render = options.survey.render;
