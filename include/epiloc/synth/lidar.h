@@ -60,13 +60,14 @@ std::vector<LidarPoint> SimulateScans(const World& world,
                                       const ProgressCallback& progress = nullptr);
 
 // Writes a binary little-endian PLY with properties x y z (float, metres), intensity (float),
-// red green blue (uchar). Points are transformed by `frame_from_world` first (identity: world
-// ENU). Throws Error if the file cannot be written.
+// red green blue (uchar) (WritePointCloud of the cloud module). Points are transformed by
+// `frame_from_world` first (identity: world ENU). Throws Error if the file cannot be written.
 void WritePly(const std::string& path,
               const std::vector<LidarPoint>& points,
               const Rigid3d& frame_from_world = Rigid3d());
-// Reads a PLY written by WritePly (surface and scan are left at -1). Throws Error for another
-// layout or a truncated file.
+// Reads a PLY with positions, intensity and colour, as WritePly writes (ReadPointCloud of the
+// cloud module: non-finite points are dropped; surface and scan are left at -1). Throws Error for
+// a malformed or truncated file or one without intensity or colour.
 std::vector<LidarPoint> ReadPly(const std::string& path);
 
 }  // namespace epiloc
