@@ -10,6 +10,7 @@
 
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
+#include "epiloc/geo/rigid3.h"
 #include "epiloc/geo/route.h"
 
 namespace epiloc {
@@ -20,6 +21,7 @@ namespace {
 struct Match {
   Geodetic position;
   size_t nearest = 0;
+  std::optional<Eigen::Quaterniond> enu_from_cam;  // local ENU at `position`
 };
 
 class TruthMatcher {
@@ -35,11 +37,12 @@ class TruthMatcher {
     if (association_ == Association::kFrame) {
       const auto it = by_frame_.find(row.frame);
       if (row.frame == kInvalidFrame || it == by_frame_.end()) return std::nullopt;
-      return Match{truth_.samples[it->second].position, it->second};
+      const PositionSample& s = truth_.samples[it->second];
+      return Match{s.position, it->second, s.enu_from_cam};
     }
     const auto sample = truth_.Interpolate(row.timestamp_s, max_gap_s_);
     if (!sample) return std::nullopt;
-    return Match{sample->position, NearestInTime(row.timestamp_s)};
+    return Match{sample->position, NearestInTime(row.timestamp_s), sample->enu_from_cam};
   }
 
  private:
@@ -89,14 +92,16 @@ std::pair<double, double> OkTimeSpan(const ResultTable& result) {
 void Summarize(MethodEvaluation& m) {
   std::sort(m.frames.begin(), m.frames.end(),
             [](const FrameError& a, const FrameError& b) { return a.timestamp_s < b.timestamp_s; });
-  std::vector<double> along, cross, horizontal, vertical, full;
+  std::vector<double> along, cross, horizontal, vertical, full, rotation;
   for (const auto& f : m.frames) {
     along.push_back(f.along_track_m);
     cross.push_back(f.cross_track_m);
     horizontal.push_back(f.horizontal_m);
     vertical.push_back(f.vertical_m);
     full.push_back(f.error_3d_m);
+    if (std::isfinite(f.rotation_deg)) rotation.push_back(f.rotation_deg);
   }
+  m.rotation = ComputeErrorStatistics(rotation);
   m.along_track = ComputeErrorStatistics(along);
   m.cross_track = ComputeErrorStatistics(cross);
   m.horizontal = ComputeErrorStatistics(horizontal);
@@ -199,6 +204,14 @@ Evaluation Evaluate(const ResultTable& result,
     f.horizontal_m = d.head<2>().norm();
     f.vertical_m = d.z();
     f.error_3d_m = d.norm();
+    if (row.enu_from_cam && match->enu_from_cam) {
+      // Both orientations are given in the local ENU at their own position.
+      const Eigen::Quaterniond estimate(enu.EnuFromLocalEnu(row.position) *
+                                        row.enu_from_cam->toRotationMatrix());
+      const Eigen::Quaterniond truth_q(enu.EnuFromLocalEnu(match->position) *
+                                       match->enu_from_cam->toRotationMatrix());
+      f.rotation_deg = RotationDifferenceDeg(estimate, truth_q);
+    }
     m.frames.push_back(f);
   }
 

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -137,6 +138,27 @@ std::vector<TableRow> OtherErrorRows(const Evaluation& eval) {
       rows.push_back(row);
     }
   }
+  // Orientation error, only when some method has orientations to compare.
+  const bool any_rotation = std::any_of(eval.methods.begin(), eval.methods.end(),
+                                        [](const MethodEvaluation& m) { return m.rotation.count > 0; });
+  if (any_rotation) {
+    rows.push_back({"Rotation [deg]", {}});
+    const std::vector<std::pair<std::string, std::function<std::string(const ErrorStatistics&)>>>
+        cells = {
+            {" Mean", [](const ErrorStatistics& s) { return Metres(s.mean_abs); }},
+            {" Median", [](const ErrorStatistics& s) { return Metres(s.median_abs); }},
+            {" RMSE", [](const ErrorStatistics& s) { return Metres(s.rmse); }},
+            {" P95", [](const ErrorStatistics& s) { return Metres(s.p95_abs); }},
+            {" Max", [](const ErrorStatistics& s) { return Metres(s.max); }},
+            {" <=0.5deg [%]", [](const ErrorStatistics& s) { return Percent(s.share_within[2]); }},
+            {" frames", [](const ErrorStatistics& s) { return std::to_string(s.count); }},
+        };
+    for (const auto& [label, format] : cells) {
+      TableRow row{label, {}};
+      for (const auto& m : eval.methods) row.cells.push_back(format(m.rotation));
+      rows.push_back(row);
+    }
+  }
   return rows;
 }
 
@@ -187,7 +209,8 @@ std::string EvaluationJson(const Evaluation& eval) {
                             {"cross_track_m", StatisticsJson(m.cross_track)},
                             {"horizontal_m", StatisticsJson(m.horizontal)},
                             {"vertical_m", StatisticsJson(m.vertical)},
-                            {"error_3d_m", StatisticsJson(m.error_3d)}});
+                            {"error_3d_m", StatisticsJson(m.error_3d)},
+                            {"rotation_deg", StatisticsJson(m.rotation)}});
   }
   j["warnings"] = eval.warnings;
   return j.dump(2) + "\n";

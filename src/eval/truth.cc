@@ -13,6 +13,7 @@
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
 #include "epiloc/io/kitti.h"
+#include "epiloc/io/pose_files.h"
 #include "epiloc/io/position_readers.h"
 
 namespace epiloc {
@@ -100,68 +101,35 @@ PositionTrack ReadKittiOxtsTruth(const std::string& path, const TruthOptions& op
   return track;
 }
 
-// Whitespace-separated numeric lines (tum, kitti_poses), each with `count` numbers.
-template <typename F>
-void ForEachNumericLine(const std::string& path, size_t count, const std::string& what, F&& f) {
-  std::ifstream in(path);
-  if (!in) Throw("{}: cannot open ground truth", path);
-  std::string line;
-  int64_t line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    const std::string trimmed = Trim(line);
-    if (trimmed.empty() || trimmed[0] == '#') continue;
-    const auto numbers = SplitNumbers(trimmed, ' ');
-    const std::string where = Where(path, line_number);
-    if (!numbers || numbers->size() != count) {
-      Throw("{}: expected {} numbers ({}), got '{}'", where, count, what, trimmed);
-    }
-    for (const double v : *numbers) {
-      if (!std::isfinite(v)) Throw("{}: non-finite number in '{}'", where, trimmed);
-    }
-    f(*numbers, where);
-  }
-}
-
+// TUM and KITTI pose files are parsed by io/pose_files.h (shared with georef); only positions
+// are used here.
 PositionTrack ReadTumTruth(const std::string& path, const TruthOptions& options) {
   const EnuFrame enu(RequireOrigin(options, path, "TUM"));
   const Eigen::Matrix3d enu_from_pose = EnuFromPoseFrame(options.yaw_deg);
   PositionTrack track;
   track.source = path;
-  ForEachNumericLine(
-      path, 8, "t x y z qx qy qz qw", [&](const std::vector<double>& v, const std::string& where) {
-        PositionSample sample;
-        sample.timestamp_s = v[0];
-        sample.position = enu.ToGeodetic(enu_from_pose * Eigen::Vector3d(v[1], v[2], v[3]));
-        Append(track, sample, where);
-      });
+  for (const StampedPose& pose : ReadTumPoses(path)) {
+    PositionSample sample;
+    sample.timestamp_s = pose.timestamp_s;
+    sample.position = enu.ToGeodetic(enu_from_pose * pose.world_from_cam.translation);
+    Append(track, sample, Where(path, pose.line));
+  }
   return track;
 }
 
 PositionTrack ReadKittiPosesTruth(const std::string& path, const TruthOptions& options) {
   const EnuFrame enu(RequireOrigin(options, path, "KITTI poses"));
   const Eigen::Matrix3d enu_from_pose = EnuFromPoseFrame(options.yaw_deg) * ZUpFromCameraAxes();
-  std::vector<double> times;
-  if (!options.times_path.empty()) times = ReadTimestamps(options.times_path);
   PositionTrack track;
   track.source = path;
-  frame_t frame = 0;
-  ForEachNumericLine(
-      path, 12, "row-major 3x4 pose", [&](const std::vector<double>& v, const std::string& where) {
-        PositionSample sample;
-        sample.frame = frame;
-        if (times.empty()) {
-          sample.timestamp_s = static_cast<double>(frame);
-        } else if (frame < static_cast<frame_t>(times.size())) {
-          sample.timestamp_s = times[static_cast<size_t>(frame)];
-        } else {
-          Throw("{}: no timestamp for pose {} in {} ({} lines)", where, frame, options.times_path,
-                times.size());
-        }
-        sample.position = enu.ToGeodetic(enu_from_pose * Eigen::Vector3d(v[3], v[7], v[11]));
-        Append(track, sample, where);
-        ++frame;
-      });
+  for (const StampedPose& pose :
+       ReadKittiPoses(path, options.times_path, /*check_rotation=*/false)) {
+    PositionSample sample;
+    sample.frame = pose.frame;
+    sample.timestamp_s = pose.timestamp_s;
+    sample.position = enu.ToGeodetic(enu_from_pose * pose.world_from_cam.translation);
+    Append(track, sample, Where(path, pose.line));
+  }
   return track;
 }
 

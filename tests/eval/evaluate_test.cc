@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "epiloc/db/database.h"
+#include "epiloc/eval/report.h"
 #include "epiloc/io/kitti.h"
 #include "eval_test_util.h"
 
@@ -257,6 +258,45 @@ TEST(EvaluateFiles, EvaluatesResultAndGnssOfADrive) {
   nothing.truth_path = dir / "drive";
   nothing.auto_gnss = false;
   ExpectError([&] { EvaluateFiles(nothing); }, {"nothing to evaluate", "--gnss"});
+}
+
+TEST(Evaluate, RotationErrorWhereBothSidesHaveOrientations) {
+  // Truth along a road east, camera looking east (x right = south, y down, z forward = east);
+  // the last sample 2 km east, where local ENU axes differ from the evaluation's.
+  PositionTrack truth = TrackFromEnu({V(0, 0, 0), V(10, 0, 0), V(2000, 0, 0)}, {0, 1, 2}, true);
+  Eigen::Matrix3d east_from_cam;
+  east_from_cam << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  const Eigen::Quaterniond level(east_from_cam);
+  for (auto& sample : truth.samples) sample.enu_from_cam = level;
+  const Eigen::Quaterniond yawed =
+      Eigen::Quaterniond(Eigen::AngleAxisd(2.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ())) * level;
+
+  ResultTable result;
+  result.path = "r.csv";
+  result.rows.push_back(OkRow("anchor", 0, 0, V(0.1, 0, 0)));
+  result.rows.back().enu_from_cam = yawed;  // 2 degrees off
+  result.rows.push_back(OkRow("anchor", 1, 1, V(10, 0, 0)));  // no orientation: not counted
+  result.rows.push_back(OkRow("anchor", 2, 2, V(2000, 0.2, 0)));
+  result.rows.back().enu_from_cam = level;  // same local orientation: 0 degrees
+  result.rows.push_back(OkRow("gps", 0, 0, V(1, 0, 0)));
+  const Evaluation eval = Evaluate(result, truth, RouteFromTrack(truth), EvaluateOptions());
+  const MethodEvaluation* anchor = eval.Find("anchor");
+  ASSERT_NE(anchor, nullptr);
+  EXPECT_NEAR(FrameAt(*anchor, 0).rotation_deg, 2.0, 1e-4);
+  EXPECT_TRUE(std::isnan(FrameAt(*anchor, 1).rotation_deg));
+  EXPECT_NEAR(FrameAt(*anchor, 2).rotation_deg, 0.0, 1e-4);
+  EXPECT_EQ(anchor->rotation.count, 2);
+  EXPECT_NEAR(anchor->rotation.max, 2.0, 1e-4);
+  EXPECT_NEAR(anchor->rotation.mean_abs, 1.0, 1e-4);
+  EXPECT_EQ(eval.Find("gps")->rotation.count, 0);
+  EXPECT_NE(FormatEvaluationTables(eval).find("Rotation [deg]"), std::string::npos);
+
+  // Without any orientation the table has no rotation section.
+  ResultTable plain;
+  plain.path = "p.csv";
+  plain.rows.push_back(OkRow("gps", 0, 0, V(1, 0, 0)));
+  const Evaluation no_rotation = Evaluate(plain, truth, RouteFromTrack(truth), EvaluateOptions());
+  EXPECT_EQ(FormatEvaluationTables(no_rotation).find("Rotation [deg]"), std::string::npos);
 }
 
 }  // namespace

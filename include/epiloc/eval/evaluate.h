@@ -8,12 +8,16 @@
 //    left of the travel direction.
 //  - horizontal = |estimate - truth| in east/north; vertical = up(estimate) - up(truth);
 //    3-D = |estimate - truth|.
+//  - rotation = the angle (degrees) of the rotation between the estimated and the true camera
+//    orientation (enu_from_cam, both moved into the evaluation's ENU axes), for rows and ground
+//    truth that both carry one; NaN otherwise (such frames do not enter the rotation statistics).
 // The truth is projected onto the part of R within `projection_window_m` of the s of the nearest
 // ground-truth sample in time (itself projected in time order), the estimate onto the part within
 // that window of the truth's s: a route passing the same place twice is handled.
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -68,6 +72,7 @@ struct FrameError {
   double horizontal_m = 0.0;
   double vertical_m = 0.0;
   double error_3d_m = 0.0;
+  double rotation_deg = NAN;  // NaN when the row or the ground truth has no orientation
 };
 
 struct MethodEvaluation {
@@ -79,6 +84,7 @@ struct MethodEvaluation {
   std::vector<double> unmatched_times_s;  // their times
   std::vector<FrameError> frames;         // evaluated = ok and matched, by time
   ErrorStatistics along_track, cross_track, horizontal, vertical, error_3d;
+  ErrorStatistics rotation;  // degrees, over the frames with a rotation error (count may be 0)
 
   int64_t ok() const { return by_status[static_cast<size_t>(ResultStatus::kOk)]; }
   int64_t not_localized() const { return rows - ok(); }
