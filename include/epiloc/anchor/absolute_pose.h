@@ -1,0 +1,44 @@
+// Absolute camera pose from 2D-3D correspondences: PnP in a RANSAC loop (OpenCV USAC MAGSAC
+// with P3P minimal solver and local optimisation) followed by a Levenberg-Marquardt refinement of
+// the reprojection error over the inliers (cv::solvePnPRefineLM), re-selecting inliers after it.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "epiloc/camera/camera.h"
+#include "epiloc/geo/rigid3.h"
+
+namespace epiloc {
+
+struct PnpOptions {
+  double max_reprojection_px = 2.0;  // RANSAC inlier threshold, pixels
+  double confidence = 0.9999;        // RANSAC confidence
+  int max_iterations = 10000;        // RANSAC iterations at most
+  int min_inliers = 12;              // fewer: no pose
+  int refine_rounds = 2;             // LM refinement + inlier re-selection rounds (0 = none)
+
+  // Throws Error naming the first invalid field.
+  void Check() const;
+};
+
+struct PnpResult {
+  bool success = false;
+  Rigid3d cam_from_world;          // x_cam = R * x_world + t
+  std::vector<char> inlier_mask;   // per correspondence
+  int num_inliers = 0;
+  double rmse_px = 0.0;            // reprojection RMSE over the inliers, pixels
+  std::string message;             // why it failed ("" on success)
+};
+
+// Estimates cam_from_world from pixels `points2d` of the distortion-free pinhole `camera` and
+// their world points `points3d` (same size). Expected failure (too few points or inliers) is a
+// result with success = false and a message, not an exception; mismatched sizes throw Error.
+PnpResult EstimateAbsolutePose(const std::vector<Eigen::Vector2d>& points2d,
+                               const std::vector<Eigen::Vector3d>& points3d,
+                               const Camera& camera,
+                               const PnpOptions& options = PnpOptions());
+
+}  // namespace epiloc

@@ -1,0 +1,327 @@
+#include "epiloc/anchor/anchor.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+// One rendering of the map at a pose, matched and solved.
+struct Attempt {
+  bool covered = false;  // the rendering filled enough of the view
+  double coverage = 0.0;
+  int num_matches = 0;
+  PnpResult pnp;
+  Rigid3d map_from_cam;  // the solved pose when pnp.success
+  std::string message;   // why there is no pose
+};
+
+bool BetterAttempt(const Attempt& a, const Attempt& b) {
+  if (a.pnp.success != b.pnp.success) return a.pnp.success;
+  if (a.pnp.num_inliers != b.pnp.num_inliers) return a.pnp.num_inliers > b.pnp.num_inliers;
+  return a.pnp.rmse_px < b.pnp.rmse_px;
+}
+
+// LiftPixel, refused where the 3x3 depths around the pixel are not one surface (an edge, where
+// the nearest pixel's depth may belong to either side).
+bool LiftAwayFromEdges(const CloudRenderResult& render,
+                       const Camera& camera,
+                       const Rigid3d& cam_from_map,
+                       const cv::Point2f& pixel,
+                       double max_depth_step,
+                       Eigen::Vector3d* point) {
+  const int u = static_cast<int>(std::lround(pixel.x));
+  const int v = static_cast<int>(std::lround(pixel.y));
+  if (u < 1 || v < 1 || u >= render.depth.cols - 1 || v >= render.depth.rows - 1) return false;
+  float lo = INFINITY, hi = 0.f;
+  for (int dv = -1; dv <= 1; ++dv) {
+    const float* row = render.depth.ptr<float>(v + dv);
+    for (int du = -1; du <= 1; ++du) {
+      const float d = row[u + du];
+      if (d <= 0.f) return false;
+      lo = std::min(lo, d);
+      hi = std::max(hi, d);
+    }
+  }
+  if (hi - lo > max_depth_step * lo + 0.1) return false;
+  return LiftPixel(render, camera, cam_from_map, pixel.x, pixel.y, point);
+}
+
+Attempt TryPose(const ImageFeatures& frame,
+                const Camera& camera,
+                const PointCloud& map,
+                const Rigid3d& map_from_cam,
+                double search_radius_px,
+                const AnchorOptions& options) {
+  Attempt attempt;
+  const Rigid3d cam_from_map = map_from_cam.Inverse();
+  CloudRenderOptions render_options = options.render;
+  render_options.num_threads = 1;  // frames run in parallel
+  const CloudRenderResult render = RenderCloud(map, camera, cam_from_map, render_options);
+  const cv::Mat valid = render.depth > 0.f;
+  attempt.coverage = static_cast<double>(cv::countNonZero(valid)) / valid.total();
+  if (attempt.coverage < options.min_coverage) {
+    attempt.message = fmt::format("the map fills {:.1f}% of the view (< {:.1f}%)",
+                                  100.0 * attempt.coverage, 100.0 * options.min_coverage);
+    return attempt;
+  }
+  attempt.covered = true;
+  cv::Mat grey = render.image;
+  if (grey.channels() == 3) cv::cvtColor(render.image, grey, cv::COLOR_BGR2GRAY);
+  cv::Mat mask = valid;
+  if (options.erode_px > 0) {
+    cv::erode(valid, mask,
+              cv::getStructuringElement(cv::MORPH_RECT,
+                                        cv::Size(2 * options.erode_px + 1, 2 * options.erode_px + 1)));
+  }
+  const ImageFeatures rendered = ExtractFeatures(grey, options.matching, mask);
+  ImageMatchOptions match_options = options.matching;
+  match_options.search_radius_px = search_radius_px;
+  const ImageMatches matches = MatchFeatures(frame, rendered, match_options);
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector3d> points;
+  for (size_t k = 0; k < matches.frame_index.size(); ++k) {
+    Eigen::Vector3d x;
+    if (!LiftAwayFromEdges(render, camera, cam_from_map,
+                           rendered.keypoints[matches.render_index[k]].pt, options.max_depth_step,
+                           &x)) {
+      continue;
+    }
+    const cv::Point2f& p = frame.keypoints[matches.frame_index[k]].pt;
+    pixels.emplace_back(p.x, p.y);
+    points.push_back(x);
+  }
+  attempt.num_matches = static_cast<int>(pixels.size());
+  attempt.pnp = EstimateAbsolutePose(pixels, points, camera, options.pnp);
+  if (!attempt.pnp.success) {
+    attempt.message = fmt::format("{} matches ({} after the ratio test): {}", matches.num_geometric,
+                                  matches.num_ratio, attempt.pnp.message);
+    return attempt;
+  }
+  attempt.map_from_cam = attempt.pnp.cam_from_world.Inverse();
+  return attempt;
+}
+
+// Pitch (optical axis above the horizon) and roll (x axis below it) of a camera, degrees.
+std::pair<double, double> PitchRollDeg(const Eigen::Matrix3d& map_from_cam) {
+  const double pitch = std::asin(std::clamp(map_from_cam(2, 2), -1.0, 1.0)) * kRadToDeg;
+  const double roll = std::asin(std::clamp(-map_from_cam(2, 0), -1.0, 1.0)) * kRadToDeg;
+  return {pitch, roll};
+}
+
+// The reliability checks of a solved pose: "" or why it is rejected.
+std::string Unreliable(const AnchorResult& r, const AnchorOptions& options) {
+  if (r.num_inliers < options.min_inliers) {
+    return fmt::format("{} inliers, fewer than {}", r.num_inliers, options.min_inliers);
+  }
+  if (r.rmse_px > options.max_rmse_px) {
+    return fmt::format("reprojection RMSE {:.2f} px above {:.2f} px", r.rmse_px,
+                       options.max_rmse_px);
+  }
+  const double max_offset = options.max_prior_sigmas * options.gnss_sigma_m;
+  if (r.prior_offset_m > max_offset) {
+    return fmt::format("{:.1f} m from the GNSS prior, more than {:.0f} sigma ({:.1f} m)",
+                       r.prior_offset_m, options.max_prior_sigmas, max_offset);
+  }
+  if (std::isfinite(r.height_above_ground_m) &&
+      std::abs(r.height_above_ground_m - options.prior.camera_height_m) >
+          options.max_height_offset_m) {
+    return fmt::format("camera {:.2f} m above the map's ground, expected {:.2f} +- {:.2f} m",
+                       r.height_above_ground_m, options.prior.camera_height_m,
+                       options.max_height_offset_m);
+  }
+  const auto [pitch, roll] = PitchRollDeg(r.map_from_cam.rotation.toRotationMatrix());
+  if (std::abs(pitch) > options.max_tilt_deg || std::abs(roll) > options.max_tilt_deg) {
+    return fmt::format("camera tilted (pitch {:.1f}, roll {:.1f} deg; at most {:.1f})", pitch,
+                       roll, options.max_tilt_deg);
+  }
+  return "";
+}
+
+}  // namespace
+
+std::string AnchorStatusName(AnchorStatus status) {
+  switch (status) {
+    case AnchorStatus::kOk:
+      return "ok";
+    case AnchorStatus::kRejected:
+      return "rejected";
+    case AnchorStatus::kLost:
+      return "lost";
+    case AnchorStatus::kNoCoverage:
+      return "no_coverage";
+    case AnchorStatus::kNoPrior:
+      return "no_prior";
+  }
+  return "?";
+}
+
+RenderShading ParseRenderShading(const std::string& name) {
+  if (name == "auto") return RenderShading::kAuto;
+  if (name == "intensity") return RenderShading::kIntensity;
+  if (name == "colour" || name == "color") return RenderShading::kColour;
+  if (name == "depth") return RenderShading::kDepth;
+  Throw("unknown shading '{}' (known: auto, intensity, colour, depth)", name);
+}
+
+void AnchorOptions::Check() const {
+  prior.Check();
+  candidates.Check();
+  matching.Check();
+  pnp.Check();
+  render.Check();
+  EPILOC_CHECK(refine_rounds >= 0, "--refine-rounds must be >= 0, got {}", refine_rounds);
+  EPILOC_CHECK(std::isfinite(guided_radius_px) && guided_radius_px >= 0,
+               "anchor options: guided_radius_px must be >= 0");
+  EPILOC_CHECK(std::isfinite(converged_m) && converged_m >= 0 && std::isfinite(converged_deg) &&
+                   converged_deg >= 0,
+               "anchor options: convergence thresholds must be >= 0");
+  EPILOC_CHECK(std::isfinite(load_radius_m) && load_radius_m > 0,
+               "anchor options: load_radius_m must be > 0, got {}", load_radius_m);
+  EPILOC_CHECK(min_coverage >= 0 && min_coverage <= 1,
+               "anchor options: min_coverage must be in [0, 1], got {}", min_coverage);
+  EPILOC_CHECK(std::isfinite(max_depth_step) && max_depth_step > 0,
+               "anchor options: max_depth_step must be > 0");
+  EPILOC_CHECK(erode_px >= 0, "anchor options: erode_px must be >= 0");
+  EPILOC_CHECK(min_inliers >= pnp.min_inliers, "--min-inliers must be >= {} (PnP), got {}",
+               pnp.min_inliers, min_inliers);
+  EPILOC_CHECK(std::isfinite(max_rmse_px) && max_rmse_px > 0, "--max-rmse must be > 0 px");
+  EPILOC_CHECK(std::isfinite(gnss_sigma_m) && gnss_sigma_m > 0, "--gnss-sigma must be > 0 m");
+  EPILOC_CHECK(std::isfinite(max_prior_sigmas) && max_prior_sigmas > 0,
+               "anchor options: max_prior_sigmas must be > 0");
+  EPILOC_CHECK(std::isfinite(max_height_offset_m) && max_height_offset_m > 0,
+               "anchor options: max_height_offset_m must be > 0");
+  EPILOC_CHECK(std::isfinite(max_tilt_deg) && max_tilt_deg > 0,
+               "anchor options: max_tilt_deg must be > 0");
+  EPILOC_CHECK(std::isfinite(heading_error_deg) && heading_error_deg >= 0 &&
+                   heading_error_deg <= 180,
+               "--heading-error-deg must be in [0, 180], got {}", heading_error_deg);
+  EPILOC_CHECK(num_threads >= 1, "--threads must be >= 1, got {}", num_threads);
+  photometric_options.Check();
+  EPILOC_CHECK(std::isfinite(max_photometric_shift_m) && max_photometric_shift_m > 0,
+               "anchor options: max_photometric_shift_m must be > 0");
+}
+
+PosePrior RotatePriorHeading(const PosePrior& prior, double delta_deg) {
+  PosePrior out = prior;
+  out.heading_deg = std::fmod(prior.heading_deg + delta_deg + 360.0, 360.0);
+  out.map_from_cam = Rigid3d::FromMatrix(MapFromCamRotation(out.heading_deg), prior.position_in_map);
+  return out;
+}
+
+AnchorResult AnchorFrame(const cv::Mat& image,
+                         const Camera& camera,
+                         const PointCloud& local_map,
+                         const EnuFrame& map_frame,
+                         const PosePrior& prior,
+                         const AnchorOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  options.Check();
+  EPILOC_CHECK(image.cols == camera.width && image.rows == camera.height,
+               "AnchorFrame: image size {}x{} differs from the camera's {}x{}", image.cols,
+               image.rows, camera.width, camera.height);
+  AnchorResult result;
+  result.frame = prior.frame;
+  result.timestamp_s = prior.timestamp_s;
+  result.has_prior = true;
+  result.prior = prior;
+  const auto finish = [&](AnchorResult r) {
+    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return r;
+  };
+
+  cv::Mat grey = image;
+  if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  const ImageFeatures frame = ExtractFeatures(grey, options.matching);
+  result.num_frame_features = static_cast<int>(frame.keypoints.size());
+
+  // Candidates (frames differ in their seed so the random candidates do too).
+  const std::vector<Rigid3d> candidates = GenerateCandidates(
+      prior, options.candidates,
+      options.seed * 1000003ULL + static_cast<uint64_t>(std::max<frame_t>(prior.frame, 0)));
+  Attempt best;
+  best.message = "no candidate";
+  bool any_covered = false;
+  double max_coverage = 0.0;
+  for (size_t c = 0; c < candidates.size(); ++c) {
+    Attempt attempt = TryPose(frame, camera, local_map, candidates[c], 0.0, options);
+    any_covered = any_covered || attempt.covered;
+    max_coverage = std::max(max_coverage, attempt.coverage);
+    if (c == 0 || BetterAttempt(attempt, best)) {
+      best = std::move(attempt);
+      result.best_candidate = static_cast<int>(c);
+    }
+  }
+  if (!any_covered) {
+    result.status = AnchorStatus::kNoCoverage;
+    result.message = fmt::format(
+        "the map does not cover the view: its rendering fills at most {:.1f}% of the image "
+        "(< {:.1f}%)",
+        100.0 * max_coverage, 100.0 * options.min_coverage);
+    result.coverage = max_coverage;
+    return finish(result);
+  }
+  if (!best.pnp.success) {
+    result.status = AnchorStatus::kLost;
+    result.message = best.message;
+    result.num_matches = best.num_matches;
+    result.coverage = best.coverage;
+    return finish(result);
+  }
+
+  for (int round = 0; round < options.refine_rounds; ++round) {
+    Attempt refined =
+        TryPose(frame, camera, local_map, best.map_from_cam, options.guided_radius_px, options);
+    if (!refined.pnp.success) break;
+    const double moved_m = (refined.map_from_cam.translation - best.map_from_cam.translation).norm();
+    const double turned_deg =
+        RotationDifferenceDeg(refined.map_from_cam.rotation, best.map_from_cam.rotation);
+    best = std::move(refined);
+    ++result.rounds;
+    if (moved_m < options.converged_m && turned_deg < options.converged_deg) break;
+  }
+
+  if (options.photometric) {
+    CloudRenderOptions render_options = options.render;
+    render_options.num_threads = 1;
+    const PhotometricResult photometric =
+        RefinePhotometric(grey, camera, local_map, best.map_from_cam.Inverse(), render_options,
+                          options.photometric_options);
+    const Rigid3d refined = photometric.cam_from_world.Inverse();
+    const double shift = (refined.translation - best.map_from_cam.translation).norm();
+    result.photometric_ncc = photometric.ncc;
+    result.photometric_shift_m = shift;
+    if (photometric.success && shift <= options.max_photometric_shift_m) {
+      best.map_from_cam = refined;
+    }
+  }
+
+  result.has_pose = true;
+  result.map_from_cam = best.map_from_cam;
+  result.num_matches = best.num_matches;
+  result.num_inliers = best.pnp.num_inliers;
+  result.rmse_px = best.pnp.rmse_px;
+  result.coverage = best.coverage;
+  const Eigen::Vector3d centre = best.map_from_cam.translation;
+  result.position = map_frame.ToGeodetic(centre);
+  result.enu_from_cam = Eigen::Quaterniond(
+      map_frame.EnuFromLocalEnu(result.position).transpose() *
+      best.map_from_cam.rotation.toRotationMatrix()).normalized();
+  result.prior_offset_m = (centre - prior.position_in_map).head<2>().norm();
+  if (const auto ground = GroundHeight(local_map, centre.head<2>(), options.prior)) {
+    result.height_above_ground_m = centre.z() - *ground;
+  }
+  result.message = Unreliable(result, options);
+  result.status = result.message.empty() ? AnchorStatus::kOk : AnchorStatus::kRejected;
+  return finish(result);
+}
+
+}  // namespace epiloc

@@ -1,0 +1,91 @@
+// Helpers shared by the anchor module's sources (not installed).
+#pragma once
+
+#include <atomic>
+#include <exception>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "epiloc/camera/camera.h"
+#include "epiloc/cloud/tiled_cloud.h"
+#include "epiloc/geo/geodetic.h"
+#include "epiloc/geo/rigid3.h"
+#include "epiloc/io/drive.h"
+
+namespace epiloc {
+namespace anchor_internal {
+
+// Runs task(i) for i in [0, n) on up to `num_threads` threads (the calling thread included),
+// handing out indices in increasing order. The first exception thrown by a task is rethrown
+// after all threads have stopped; the remaining indices are then skipped.
+inline void ParallelFor(int n, int num_threads, const std::function<void(int)>& task) {
+  const int workers = std::max(1, std::min(num_threads, n));
+  std::atomic<int> next{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  const auto work = [&] {
+    for (int i = next++; i < n; i = next++) {
+      try {
+        task(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        next = n;
+      }
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int t = 1; t < workers; ++t) threads.emplace_back(work);
+  work();
+  for (auto& thread : threads) thread.join();
+  if (error) std::rethrow_exception(error);
+}
+
+// map_from_cam of a camera whose position sample (WGS-84 centre, enu_from_cam in the local ENU
+// at that position) is expressed in the map's ENU frame.
+inline Rigid3d MapFromSample(const EnuFrame& map_frame,
+                             const Geodetic& position,
+                             const Eigen::Quaterniond& local_enu_from_x) {
+  return Rigid3d::FromMatrix(map_frame.EnuFromLocalEnu(position) *
+                                 local_enu_from_x.normalized().toRotationMatrix(),
+                             map_frame.ToEnu(position));
+}
+
+// The drive's camera poses with orientation: the ground truth if all its samples have one, else
+// the GNSS if all of its have; nullptr if neither.
+inline const PositionTrack* OrientedTrack(const Drive& drive) {
+  const auto oriented = [](const PositionTrack& track) {
+    if (track.samples.empty()) return false;
+    for (const PositionSample& s : track.samples) {
+      if (!s.enu_from_cam) return false;
+    }
+    return true;
+  };
+  if (drive.ground_truth && oriented(*drive.ground_truth)) return &*drive.ground_truth;
+  if (oriented(drive.gnss)) return &drive.gnss;
+  return nullptr;
+}
+
+// Opens a map for loading near poses: a tile directory as is; a single file whole when it holds
+// at most `max_whole_points` points, else cut once into a tile cache `tile_dir` (default
+// <cloud>.tiles), reused while it is newer than the file. Throws Error naming the path.
+std::unique_ptr<TiledCloud> OpenMap(const std::string& cloud_path,
+                                    const std::string& tile_dir,
+                                    int64_t max_whole_points);
+
+// Throws Error naming the cloud when its bounds lie more than `max_distance_m` (horizontally)
+// from every GNSS (else ground-truth) position of the drive: it is in another frame.
+void CheckMapNearDrive(const std::string& cloud_path,
+                       const TiledCloud& map,
+                       const EnuFrame& map_frame,
+                       const Drive& drive,
+                       double max_distance_m);
+
+}  // namespace anchor_internal
+}  // namespace epiloc

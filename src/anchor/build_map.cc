@@ -1,0 +1,287 @@
+#include "epiloc/anchor/build_map.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+
+#include <spdlog/spdlog.h>
+
+#include "anchor_internal.h"
+#include "epiloc/anchor/map_sidecar.h"
+#include "epiloc/cloud/cloud_io.h"
+#include "epiloc/cloud/voxel.h"
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+namespace {
+
+using anchor_internal::MapFromSample;
+using anchor_internal::ParallelFor;
+
+CloudFormat ScanFormat(const LidarScan& scan, const std::string& path) {
+  if (scan.format == "kitti_bin") return CloudFormat::kKittiBin;
+  try {
+    return ParseCloudFormat(scan.format);
+  } catch (const Error& e) {
+    Throw("{}: scan format '{}': {}", path, scan.format, e.what());
+  }
+}
+
+// Motion compensation of one scan (BuildMapOptions::deskew_period_s): the sensor's motion
+// relative to its pose at the scan time, at the start and end of the revolution, interpolated
+// linearly in time (constant velocity over one revolution).
+class Deskew {
+ public:
+  Deskew(const Rigid3d& before, const Rigid3d& after, bool clockwise)
+      : before_(before), after_(after), clockwise_(clockwise) {}
+
+  // The point (sensor frame at its measurement time) in the sensor frame at the scan time.
+  Eigen::Vector3f Apply(const Eigen::Vector3f& p) const {
+    const double phi = std::atan2(p.y(), p.x());
+    const double fraction = (clockwise_ ? -phi : phi) / M_PI;  // tau / half period, [-1, 1]
+    const Rigid3d& end = fraction >= 0 ? after_ : before_;
+    const double a = std::abs(fraction);
+    const Eigen::Quaterniond q = Eigen::Quaterniond::Identity().slerp(a, end.rotation);
+    return (q * p.cast<double>() + a * end.translation).cast<float>();
+  }
+
+ private:
+  Rigid3d before_, after_;  // sensor_at_scan_time_from_sensor at -+ half a period
+  bool clockwise_;
+};
+
+std::optional<Deskew> MakeDeskew(const Drive& drive,
+                                 const LidarScan& scan,
+                                 const EnuFrame& map_frame,
+                                 const Rigid3d& map_from_sensor,
+                                 const BuildMapOptions& options) {
+  if (options.deskew_period_s <= 0) return std::nullopt;
+  const PositionTrack* track = anchor_internal::OrientedTrack(drive);
+  if (!track) {
+    Throw("{}: deskewing needs camera orientations in the ground truth or GNSS", drive.dir);
+  }
+  const double half = 0.5 * options.deskew_period_s;
+  const auto pose_at = [&](double t) -> std::optional<Rigid3d> {
+    const auto s = track->Interpolate(t, std::max(drive.max_gap_s, 1.0));
+    if (!s) return std::nullopt;
+    return MapFromSample(map_frame, s->position, *s->enu_from_cam);
+  };
+  const auto at_scan = pose_at(scan.timestamp_s);
+  const auto before = pose_at(scan.timestamp_s - half);
+  const auto after = pose_at(scan.timestamp_s + half);
+  if (!at_scan || !before || !after) {
+    spdlog::warn("{}: no camera pose around scan {}; not deskewed", drive.dir, scan.scan);
+    return std::nullopt;
+  }
+  // sensor(t_scan)_from_sensor(t) = sensor_from_map(t_scan) * map_from_cam(t) * cam_from_sensor.
+  const Rigid3d cam_from_sensor = at_scan->Inverse() * map_from_sensor;
+  const Rigid3d sensor_from_map = map_from_sensor.Inverse();
+  return Deskew(sensor_from_map * *before * cam_from_sensor,
+                sensor_from_map * *after * cam_from_sensor, options.spin_clockwise);
+}
+
+// The scan's points within the range limits, moved into the map frame.
+PointCloud ReadScanInMap(const Drive& drive,
+                         const LidarScan& scan,
+                         const EnuFrame& map_frame,
+                         const BuildMapOptions& options) {
+  const std::string path = drive.ScanPath(scan);
+  CloudReadOptions read;
+  read.format = ScanFormat(scan, path);
+  read.read_colour = false;  // a scan's own colours are not the map's
+  const PointCloud raw = ReadPointCloud(path, read);
+  const Rigid3d map_from_sensor = MapFromSample(map_frame, scan.sensor_position,
+                                                scan.enu_from_sensor);
+  const Eigen::Matrix3f r = map_from_sensor.rotation.toRotationMatrix().cast<float>();
+  const Eigen::Vector3d t = map_from_sensor.translation;
+  const float min2 = static_cast<float>(options.min_range_m * options.min_range_m);
+  const float max2 = static_cast<float>(options.max_range_m * options.max_range_m);
+  const std::optional<Deskew> deskew = MakeDeskew(drive, scan, map_frame, map_from_sensor, options);
+  PointCloud out;
+  out.Reserve(raw.size(), raw.HasIntensity(), false);
+  for (size_t i = 0; i < raw.size(); ++i) {
+    Eigen::Vector3f p = raw.positions[i];
+    const float range2 = p.squaredNorm();
+    if (range2 < min2 || range2 > max2) continue;
+    if (deskew) p = deskew->Apply(p);
+    // Rotate in float, translate in double: map coordinates may be far from the origin.
+    out.positions.push_back((t + (r * p).cast<double>()).cast<float>());
+    if (raw.HasIntensity()) out.intensity.push_back(raw.intensity[i]);
+  }
+  return out;
+}
+
+// The first position of the drive: ground truth, else GNSS, else the first scan.
+std::pair<Geodetic, std::string> DriveOrigin(const Drive& drive) {
+  if (drive.ground_truth && !drive.ground_truth->samples.empty()) {
+    return {drive.ground_truth->samples.front().position,
+            "first ground-truth position of drive " + drive.name};
+  }
+  if (!drive.gnss.samples.empty()) {
+    return {drive.gnss.samples.front().position, "first GNSS position of drive " + drive.name};
+  }
+  if (!drive.lidar.empty()) {
+    return {drive.lidar.front().sensor_position, "first scan position of drive " + drive.name};
+  }
+  Throw("{}: the drive has no positions to place a map origin at", drive.dir);
+}
+
+}  // namespace
+
+std::string ColourModeName(ColourMode mode) {
+  return mode == ColourMode::kAverage ? "average" : "closest";
+}
+
+ColourMode ParseColourMode(const std::string& name) {
+  if (name == "average") return ColourMode::kAverage;
+  if (name == "closest") return ColourMode::kClosest;
+  Throw("unknown colour mode '{}' (known: average, closest)", name);
+}
+
+void MapColourOptions::Check() const {
+  EPILOC_CHECK(frame_step >= 1, "colour options: frame_step must be >= 1, got {}", frame_step);
+  EPILOC_CHECK(std::isfinite(min_range_m) && min_range_m >= 0 && std::isfinite(max_range_m) &&
+                   max_range_m > min_range_m,
+               "colour options: need 0 <= min_range_m < max_range_m, got {} and {}", min_range_m,
+               max_range_m);
+  EPILOC_CHECK(std::isfinite(occlusion_rel) && occlusion_rel >= 0,
+               "colour options: occlusion_rel must be >= 0, got {}", occlusion_rel);
+  EPILOC_CHECK(std::isfinite(occlusion_abs_m) && occlusion_abs_m >= 0,
+               "colour options: occlusion_abs_m must be >= 0, got {}", occlusion_abs_m);
+  EPILOC_CHECK(border_px >= 0, "colour options: border_px must be >= 0, got {}", border_px);
+  EPILOC_CHECK(std::isfinite(footprint_m) && footprint_m >= 0,
+               "colour options: footprint_m must be >= 0, got {}", footprint_m);
+  render.Check();
+}
+
+void BuildMapOptions::Check() const {
+  EPILOC_CHECK(std::isfinite(voxel_m) && voxel_m >= 0, "--voxel must be >= 0 m, got {}", voxel_m);
+  EPILOC_CHECK(std::isfinite(min_range_m) && min_range_m >= 0,
+               "build-map options: min_range_m must be >= 0, got {}", min_range_m);
+  EPILOC_CHECK(std::isfinite(max_range_m) && max_range_m > min_range_m,
+               "build-map options: max_range_m must exceed min_range_m, got {}", max_range_m);
+  EPILOC_CHECK(std::isfinite(deskew_period_s) && deskew_period_s >= 0 && deskew_period_s < 10,
+               "--deskew-period must be in [0, 10) s, got {}", deskew_period_s);
+  EPILOC_CHECK(num_threads >= 1, "build-map options: num_threads must be >= 1, got {}",
+               num_threads);
+  colour.Check();
+}
+
+PointCloud MergeScans(const Drive& drive,
+                      const EnuFrame& map_frame,
+                      const BuildMapOptions& options,
+                      const ProgressCallback& progress,
+                      BuildMapSummary* summary) {
+  options.Check();
+  if (drive.lidar.empty()) Throw("{}: the drive has no LiDAR scans (drive.json 'lidar')", drive.dir);
+  const int num_scans = static_cast<int>(drive.lidar.size());
+  std::optional<VoxelGrid> grid;
+  if (options.voxel_m > 0) grid.emplace(options.voxel_m);
+  PointCloud merged;
+  int64_t points_in = 0;
+  // Scans are read in parallel in batches and added in scan order, so the result is the same for
+  // any thread count.
+  const int batch = std::max(1, options.num_threads);
+  std::vector<PointCloud> scans(batch);
+  for (int first = 0; first < num_scans; first += batch) {
+    const int n = std::min(batch, num_scans - first);
+    ParallelFor(n, options.num_threads, [&](int i) {
+      scans[i] = ReadScanInMap(drive, drive.lidar[first + i], map_frame, options);
+    });
+    for (int i = 0; i < n; ++i) {
+      points_in += static_cast<int64_t>(scans[i].size());
+      if (grid) {
+        grid->Add(scans[i]);
+      } else {
+        merged.Append(scans[i]);
+      }
+      scans[i] = PointCloud();
+    }
+    if (progress) progress(first + n, num_scans);
+  }
+  if (grid) merged = grid->Extract();
+  if (summary) {
+    summary->num_scans = num_scans;
+    summary->num_points_in = points_in;
+  }
+  return merged;
+}
+
+BuildMapSummary BuildMap(const std::string& drive_dir,
+                         const std::string& out_path,
+                         const std::optional<Geodetic>& origin,
+                         const std::string& origin_source,
+                         const BuildMapOptions& options,
+                         const ProgressCallback& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  options.Check();
+  const Drive drive = LoadDrive(drive_dir);
+  if (drive.lidar.empty()) Throw("{}: the drive has no LiDAR scans (drive.json 'lidar')", drive_dir);
+  CloudWriteOptions write_options;
+  write_options.Check();
+  CloudFormatFromPath(out_path);  // an unknown extension fails before the work
+
+  BuildMapSummary summary;
+  summary.drive_name = drive.name;
+  std::string source = origin_source;
+  if (origin) {
+    summary.enu_origin = *origin;
+  } else {
+    std::tie(summary.enu_origin, source) = DriveOrigin(drive);
+  }
+  const EnuFrame map_frame(summary.enu_origin);
+
+  const int64_t num_scans = static_cast<int64_t>(drive.lidar.size());
+  const int64_t num_frames =
+      options.colorize
+          ? (static_cast<int64_t>(drive.frames.size()) + options.colour.frame_step - 1) /
+                options.colour.frame_step
+          : 0;
+  const int64_t total = num_scans + num_frames;
+  PointCloud cloud = MergeScans(
+      drive, map_frame, options,
+      [&](int64_t done, int64_t) {
+        if (progress) progress(done, total);
+      },
+      &summary);
+  if (options.colorize) {
+    ColorizeCloud(
+        drive, map_frame, options.colour, options.num_threads, &cloud,
+        [&](int64_t done, int64_t) {
+          if (progress) progress(num_scans + done, total);
+        },
+        &summary);
+  }
+  if (cloud.empty()) Throw("{}: no scan point within the range limits; the map is empty", drive_dir);
+
+  const auto parent = std::filesystem::path(out_path).parent_path();
+  if (!parent.empty()) std::filesystem::create_directories(parent);
+  WritePointCloud(out_path, cloud, write_options);
+
+  summary.num_points_out = static_cast<int64_t>(cloud.size());
+  summary.bounds = ComputeBounds(cloud);
+  MapSidecar sidecar;
+  sidecar.enu_origin = summary.enu_origin;
+  sidecar.origin_source = source;
+  sidecar.source_drive = drive.name;
+  sidecar.source_dir = std::filesystem::absolute(drive.dir).lexically_normal().string();
+  sidecar.voxel_m = options.voxel_m;
+  sidecar.num_points = summary.num_points_out;
+  sidecar.num_scans = summary.num_scans;
+  if (cloud.HasIntensity()) sidecar.attributes.push_back("intensity");
+  if (cloud.HasColour()) sidecar.attributes.push_back("rgb");
+  if (options.colorize) {
+    sidecar.colour_mode = ColourModeName(options.colour.mode);
+    sidecar.colour_frames = summary.num_colour_frames;
+    sidecar.coloured_points = summary.num_coloured_points;
+  }
+  sidecar.bounds = summary.bounds;
+  sidecar.created_by = std::string("epiloc ") + EPILOC_VERSION;
+  WriteMapSidecar(sidecar, SidecarPath(out_path));
+  summary.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+}  // namespace epiloc

@@ -1,0 +1,180 @@
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "cli_common.h"
+#include "epiloc/anchor/anchor.h"
+#include "epiloc/anchor/map_sidecar.h"
+#include "epiloc/cli/commands.h"
+#include "epiloc/core/csv.h"
+#include "epiloc/core/error.h"
+#include "epiloc/core/progress.h"
+#include "epiloc/eval/result.h"
+
+namespace epiloc {
+namespace {
+
+// "N", "A:B" or "A:B:S" items (B exclusive), comma-separated: "0,5,10:20:2".
+std::vector<frame_t> ParseFrameList(const std::string& text) {
+  std::vector<frame_t> frames;
+  const std::string where = "--frames '" + text + "'";
+  for (const std::string& item : SplitCsvLine(text)) {
+    std::vector<std::string> parts;
+    size_t begin = 0;
+    while (true) {
+      const size_t colon = item.find(':', begin);
+      parts.push_back(item.substr(begin, colon - begin));
+      if (colon == std::string::npos) break;
+      begin = colon + 1;
+    }
+    if (parts.size() == 1) {
+      frames.push_back(ParseInt(parts[0], where));
+      continue;
+    }
+    if (parts.size() > 3) Throw("{}: expected N, START:STOP or START:STOP:STEP items", where);
+    const int64_t start = ParseInt(parts[0], where);
+    const int64_t stop = ParseInt(parts[1], where);
+    const int64_t step = parts.size() == 3 ? ParseInt(parts[2], where) : 1;
+    if (step < 1) Throw("{}: the step must be >= 1", where);
+    for (int64_t f = start; f < stop; f += step) frames.push_back(f);
+  }
+  if (frames.empty()) Throw("{}: no frames", where);
+  return frames;
+}
+
+ResultStatus ToResultStatus(AnchorStatus status) {
+  switch (status) {
+    case AnchorStatus::kOk:
+      return ResultStatus::kOk;
+    case AnchorStatus::kRejected:
+      return ResultStatus::kRejected;
+    default:
+      return ResultStatus::kLost;
+  }
+}
+
+std::string Fixed(double value, int digits) {
+  return std::isfinite(value) ? fmt::format("{:.{}f}", value, digits) : "";
+}
+
+// One result row per anchored frame (method "anchor"); the figures as extra columns.
+ResultTable ToResultTable(const AnchorDriveResult& anchors, const std::string& path) {
+  ResultTable table;
+  table.path = path;
+  table.extra_columns = {"anchor_status", "inliers",    "matches", "rmse_px",
+                         "prior_offset_m", "x_m",       "y_m",     "z_m",
+                         "candidate",     "rounds",     "seconds", "message"};
+  for (const AnchorResult& a : anchors.frames) {
+    ResultRow row;
+    row.frame = a.frame;
+    row.timestamp_s = a.timestamp_s;
+    row.method = "anchor";
+    row.status = ToResultStatus(a.status);
+    const Eigen::Vector3d x = a.map_from_cam.translation;
+    if (a.has_pose) {
+      row.position = a.position;
+      row.has_position = true;
+      row.enu_from_cam = a.enu_from_cam;
+    }
+    row.extra = {AnchorStatusName(a.status),
+                 std::to_string(a.num_inliers),
+                 std::to_string(a.num_matches),
+                 a.has_pose ? Fixed(a.rmse_px, 3) : "",
+                 a.has_pose ? Fixed(a.prior_offset_m, 3) : "",
+                 a.has_pose ? Fixed(x.x(), 4) : "",
+                 a.has_pose ? Fixed(x.y(), 4) : "",
+                 a.has_pose ? Fixed(x.z(), 4) : "",
+                 std::to_string(a.best_candidate),
+                 std::to_string(a.rounds),
+                 Fixed(a.seconds, 3),
+                 a.message};
+    table.rows.push_back(std::move(row));
+  }
+  return table;
+}
+
+}  // namespace
+
+int RunAnchor(int argc, char** argv) {
+  CLI::App app(
+      "Anchor camera frames in a LiDAR map: candidate poses around the GPS prior are rendered, "
+      "matched with the undistorted frame (AKAZE or SIFT), lifted to 3-D and solved by PnP "
+      "RANSAC + LM, then refined by re-rendering at the solved pose. Writes a result CSV "
+      "(method anchor) that epiloc evaluate reads.",
+      "anchor");
+  CommonFlags flags;
+  AddCommonFlags(app, flags);
+  AnchorInputs inputs;
+  AnchorOptions options;
+  std::string frames_text, out_path, origin_text, db_path, matcher = "akaze", shading = "auto";
+  app.add_option("--cloud", inputs.cloud_path, "Map: point-cloud file or tile directory")
+      ->required();
+  app.add_option("--drive", inputs.drive_dir, "Drive whose frames are anchored")->required();
+  auto* frames_option = app.add_option(
+      "--frames", frames_text, "Frame numbers: N, START:STOP[:STEP] (STOP exclusive), comma list");
+  app.add_option("--every", inputs.every, "Every n-th frame of the drive (without --frames)")
+      ->excludes(frames_option)
+      ->capture_default_str();
+  app.add_option("--out", out_path, "Result CSV to write")->required();
+  app.add_option("--cloud-origin", origin_text,
+                 "LAT,LON,ALT of the cloud's ENU origin (when it has no sidecar)");
+  app.add_option("--db", db_path, "Route database whose ENU origin the cloud uses (no sidecar)");
+  app.add_option("--heading-error-deg", options.heading_error_deg,
+                 "Testing: perturb each prior heading by a seeded uniform error in +-D degrees")
+      ->capture_default_str();
+  app.add_option("--seed", options.seed, "Seed of the heading perturbation and random candidates")
+      ->capture_default_str();
+  app.add_option("--candidates", options.candidates.num_candidates,
+                 "Candidate poses rendered per frame, the prior included")
+      ->capture_default_str();
+  app.add_option("--matcher", matcher, "akaze | sift")->capture_default_str();
+  app.add_option("--shading", shading, "Rendering: auto | intensity | colour")
+      ->capture_default_str();
+  app.add_option("--camera-height", options.prior.camera_height_m,
+                 "Camera above the road, metres (the prior's height over the map's ground)")
+      ->capture_default_str();
+  app.add_option("--gnss-sigma", options.gnss_sigma_m,
+                 "Horizontal GNSS sigma, metres; poses more than 4 sigma away are rejected")
+      ->capture_default_str();
+  app.add_option("--min-inliers", options.min_inliers, "Fewer PnP inliers: rejected")
+      ->capture_default_str();
+  app.add_option("--max-rmse", options.max_rmse_px, "Higher reprojection RMSE (px): rejected")
+      ->capture_default_str();
+  app.add_option("--refine-rounds", options.refine_rounds,
+                 "Re-renders at the solved pose (the centimetre step)")
+      ->capture_default_str();
+  app.add_flag("--photometric", options.photometric,
+               "Finish with direct photometric refinement against the rendering");
+  app.add_option("--splat-size", options.render.splat_size_m, "Metric splat size, metres")
+      ->capture_default_str();
+  app.add_option("--threads", options.num_threads, "Frames anchored in parallel")
+      ->capture_default_str();
+  if (auto code = Parse(app, flags, argc, argv)) return *code;
+
+  MapOriginInputs origin_inputs{inputs.cloud_path, std::nullopt, db_path};
+  if (!origin_text.empty()) origin_inputs.explicit_origin = ParseGeodetic(origin_text, "--cloud-origin");
+  inputs.map_origin = ResolveMapOrigin(origin_inputs).enu_origin;
+  if (!frames_text.empty()) inputs.frames = ParseFrameList(frames_text);
+  options.matching.type = ParseFeatureType(matcher);
+  options.render.shading = ParseRenderShading(shading);
+
+  Progress progress("anchor", 0);
+  const AnchorDriveResult result = AnchorDrive(inputs, options, progress.Callback());
+  progress.Finish();
+  WriteResultCsv(ToResultTable(result, out_path), out_path);
+
+  int64_t by_status[5] = {0, 0, 0, 0, 0};
+  for (const AnchorResult& a : result.frames) ++by_status[static_cast<int>(a.status)];
+  const size_t n = result.frames.size();
+  std::printf(
+      "%s: %lld of %zu frames anchored (ok), %lld rejected, %lld lost, %lld without map "
+      "coverage, %lld without prior; %.2f s per frame (%.1f s wall, %d threads)\n",
+      out_path.c_str(), static_cast<long long>(by_status[0]), n,
+      static_cast<long long>(by_status[1]), static_cast<long long>(by_status[2]),
+      static_cast<long long>(by_status[3]), static_cast<long long>(by_status[4]),
+      n > 0 ? result.seconds / n : 0.0, result.seconds, options.num_threads);
+  return kExitOk;
+}
+
+}  // namespace epiloc

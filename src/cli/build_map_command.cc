@@ -1,0 +1,98 @@
+#include <cstdio>
+#include <string>
+
+#include "cli_common.h"
+#include "epiloc/anchor/build_map.h"
+#include "epiloc/anchor/map_sidecar.h"
+#include "epiloc/cli/commands.h"
+#include "epiloc/core/error.h"
+#include "epiloc/core/progress.h"
+
+namespace epiloc {
+
+int RunBuildMap(int argc, char** argv) {
+  CLI::App app(
+      "Merge a drive's LiDAR scans (lidar.csv poses) into one voxel-filtered point cloud in a "
+      "local ENU frame, optionally coloured from the drive's camera frames (occlusion-aware). "
+      "The frame is written to the sidecar <out>.json, which render and anchor read.",
+      "build-map");
+  CommonFlags flags;
+  AddCommonFlags(app, flags);
+  std::string drive_dir, out_path, db_path, origin_text, colour_mode = "closest";
+  BuildMapOptions options;
+  app.add_option("--drive", drive_dir, "Drive directory with LiDAR scans (drive.json 'lidar')")
+      ->required();
+  app.add_option("--out", out_path, "Map file to write (.ply recommended; also .pcd, .xyz)")
+      ->required();
+  app.add_option("--voxel", options.voxel_m, "Voxel side of the filter, metres (0 = none)")
+      ->capture_default_str();
+  app.add_flag("--colorize", options.colorize,
+               "Colour the points from the drive's camera frames (needs camera orientations)");
+  app.add_option("--colour-mode", colour_mode,
+                 "closest: colour of the nearest frame that sees the point; average: mean over "
+                 "all frames that see it")
+      ->capture_default_str();
+  app.add_option("--colour-step", options.colour.frame_step, "Colour from every n-th frame")
+      ->capture_default_str();
+  app.add_option("--colour-range", options.colour.max_range_m,
+                 "A frame colours points at most this far away, metres")
+      ->capture_default_str();
+  app.add_option("--colour-min-range", options.colour.min_range_m,
+                 "A frame colours points at least this far away, metres")
+      ->capture_default_str();
+  app.add_flag("--keep-uncoloured", options.colour.keep_uncoloured,
+               "Keep points no frame sees (grey) instead of dropping them");
+  app.add_option("--db", db_path, "Route database whose ENU origin the map uses");
+  app.add_option("--origin", origin_text,
+                 "LAT,LON,ALT of the map's ENU origin (default: --db's, else the drive's first "
+                 "position)");
+  app.add_option("--min-range", options.min_range_m,
+                 "Scan points closer to the sensor are dropped, metres")
+      ->capture_default_str();
+  app.add_option("--max-range", options.max_range_m,
+                 "Scan points farther from the sensor are dropped, metres")
+      ->capture_default_str();
+  std::string spin = "cw";
+  app.add_option("--deskew-period", options.deskew_period_s,
+                 "Motion-compensate spinning-LiDAR scans with this revolution period, seconds (0 "
+                 "= off; KITTI HDL-64E: 0.1); needs the drive's camera orientations")
+      ->capture_default_str();
+  app.add_option("--spin", spin, "Spin direction seen from above: cw | ccw")->capture_default_str();
+  app.add_option("--threads", options.num_threads, "Worker threads")->capture_default_str();
+  if (auto code = Parse(app, flags, argc, argv)) return *code;
+  if (!db_path.empty() && !origin_text.empty()) Throw("give --db or --origin, not both");
+  options.colour.mode = ParseColourMode(colour_mode);
+  if (spin != "cw" && spin != "ccw") Throw("--spin '{}': expected cw or ccw", spin);
+  options.spin_clockwise = spin == "cw";
+
+  std::optional<Geodetic> origin;
+  std::string origin_source;
+  if (!origin_text.empty()) {
+    origin = ParseGeodetic(origin_text, "--origin");
+    origin_source = "given (--origin)";
+  } else if (!db_path.empty()) {
+    origin = DatabaseEnuOrigin(db_path);
+    origin_source = "database " + db_path;
+  }
+  Progress progress("build-map", 0);
+  const BuildMapSummary s =
+      BuildMap(drive_dir, out_path, origin, origin_source, options, progress.Callback());
+  progress.Finish();
+  std::printf(
+      "%s: %lld points from %lld scans (%lld scan points), voxel %.3f m%s; origin %.9f,%.9f,%.3f; "
+      "sidecar %s; %.1f s\n",
+      out_path.c_str(), static_cast<long long>(s.num_points_out),
+      static_cast<long long>(s.num_scans), static_cast<long long>(s.num_points_in),
+      options.voxel_m,
+      options.colorize
+          ? fmt::format(", {} coloured from {} frames ({}), {} unseen dropped",
+                        s.num_coloured_points, s.num_colour_frames, colour_mode,
+                        s.num_dropped_uncoloured)
+                .c_str()
+          : "",
+      s.enu_origin.lat_deg, s.enu_origin.lon_deg, s.enu_origin.alt_m,
+      SidecarPath(out_path).c_str(), s.seconds);
+  return kExitOk;
+}
+
+}  // namespace epiloc

@@ -1,0 +1,48 @@
+// Helpers of the anchor tests: a small synthetic world generated once and shared by the test
+// processes (CTest runs every test in its own process), and pose comparisons.
+#pragma once
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "epiloc/synth/drive_gen.h"
+#include "test_util.h"
+
+namespace epiloc {
+
+// The world's ENU origin (WorldOptions default).
+inline Geodetic SynthOrigin() { return WorldOptions().origin; }
+
+// A 50 m synthetic street with per-scan LiDAR files, survey frames every 2 m and a clean query
+// (no noise, blur, exposure change or wobble; lens distortion kept) at 3 Hz, written once into
+// the temporary directory and reused (the name carries the options' version). Generated into a
+// private directory and renamed, so concurrent test processes never see a partial world.
+inline std::string SharedSyntheticWorld() {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / "epiloc_anchor_test_world_v1";
+  if (fs::exists(dir / "complete")) return dir.string();
+  SynthOptions options;
+  options.length_m = 50.0;
+  options.seed = 3;
+  options.survey.frame_rate_hz = 4.0;
+  options.query.frame_rate_hz = 3.0;
+  options.query.render = options.survey.render;
+  options.query.exposure_s = 0.0;
+  options.query.wobble_yaw_deg = 0.0;
+  options.query.wobble_pitch_deg = 0.0;
+  options.lidar_scan_files = true;
+  const fs::path tmp = dir.string() + ".tmp." + std::to_string(::getpid());
+  fs::remove_all(tmp);
+  GenerateSynthetic(options, tmp.string());
+  { std::ofstream(tmp / "complete") << "ok\n"; }
+  std::error_code error;
+  fs::rename(tmp, dir, error);
+  if (error) fs::remove_all(tmp);  // another process was first
+  return dir.string();
+}
+
+}  // namespace epiloc
