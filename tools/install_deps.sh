@@ -10,6 +10,7 @@ packages=(
   libgtest-dev libgmock-dev
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libxxhash-dev gnuplot-nox time
+  libceres-dev
 )
 
 missing=()

@@ -27,6 +27,11 @@ int RunInfo(int argc, char** argv);
 int RunLocalize(int argc, char** argv);
 int RunEvaluate(int argc, char** argv);
 int RunExport(int argc, char** argv);
+int RunBuildMap(int argc, char** argv);
+int RunRender(int argc, char** argv);
+int RunAnchor(int argc, char** argv);
+int RunVo(int argc, char** argv);
+int RunGeoref(int argc, char** argv);
 
 // Exit codes.
 constexpr int kExitOk = 0;

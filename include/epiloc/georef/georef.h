@@ -1,0 +1,125 @@
+// Georeferencing of a monocular trajectory (`epiloc georef`): the relative VO/SLAM poses are
+// mapped into the local ENU frame with anchors (absolute poses of a few frames, anchors.h), by
+// one of three methods, and written per frame as a result CSV (eval/result.h) that
+// `epiloc evaluate` compares and `epiloc build-db --positions` accepts.
+//
+// Methods (x = VO camera centre, R_vo = VO world_from_cam rotation; anchor k: VO pose at its time
+// (x_k, R_vo_k), absolute centre X_k and enu_from_cam R_k):
+//  - paper (Kurobe et al., eq. 3-7): the first anchor fixes the rotation and the origin,
+//    R = R_0 R_vo_0^T (eq. 5: the VO frame's axes unified with the map's), and the scale comes
+//    from a second anchor n using only the travel-direction component (the paper's last
+//    paragraph of "Transformation of the coordinate system"): with u the horizontal unit vector
+//    of X_n - X_0, s = u.(X_n - X_0) / u.(R (x_n - x_0)) (eq. 6 restricted to u; vertical and
+//    lateral parts of the VO chord do not bias the scale). X = s R (x - x_0) + X_0 (eq. 7, the
+//    rotation being the first anchor's, as the text describes), enu_from_cam = R R_vo.
+//    The second anchor is the last usable one by default (longest baseline).
+//  - sim3: the least-squares similarity over all usable anchor centres (Umeyama,
+//    Eigen::umeyama); enu_from_cam = R R_vo. Needs >= 3 anchors not on one line.
+//  - piecewise: between consecutive anchors k, k+1 a similarity that maps x_k to X_k and x_{k+1}
+//    to X_{k+1} exactly: scale |X_{k+1} - X_k| / |x_{k+1} - x_k|, rotation = the mean of the two
+//    anchors' rotations R_j R_vo_j^T (slerp at 1/2), corrected by the smallest rotation that
+//    turns the VO chord onto the anchor chord. Positions are continuous at anchors and every
+//    interval is re-anchored, so the VO's scale drift and rotation drift cannot accumulate past an
+//    anchor. Orientation: slerp of the anchors' rotations R_j R_vo_j^T by time, times R_vo.
+//    Anchors closer than `min_anchor_spacing_m` to the previous kept one are skipped (a chord that
+//    short, e.g. when standing, gives no scale). Before the first and after the last anchor the
+//    nearest interval's similarity is extrapolated.
+// Anchors are associated with the trajectory by time (the VO pose interpolated at the anchor's
+// time, InterpolatePose with max_gap_s); only status ok anchors are used. paper and piecewise need
+// the anchors' orientations (qw..qz).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "epiloc/core/types.h"
+#include "epiloc/eval/result.h"
+#include "epiloc/geo/geodetic.h"
+#include "epiloc/georef/anchors.h"
+#include "epiloc/georef/similarity.h"
+#include "epiloc/georef/trajectory_import.h"
+
+namespace epiloc {
+
+enum class GeorefMethod { kPaper, kSim3, kPiecewise };
+// "paper", "sim3", "piecewise" (the result-CSV method names); unknown names throw Error.
+std::string GeorefMethodName(GeorefMethod method);
+GeorefMethod ParseGeorefMethod(const std::string& name);
+// "all" or a comma-separated list of method names.
+std::vector<GeorefMethod> ParseGeorefMethods(const std::string& list);
+
+struct GeorefOptions {
+  std::vector<GeorefMethod> methods = {GeorefMethod::kPiecewise};
+  double max_gap_s = 1.0;             // VO poses further apart are not interpolated between
+  int paper_second_anchor = -1;       // paper: index of the scale anchor among usable ones; -1 last
+  double min_anchor_spacing_m = 1.0;  // piecewise: closer anchors are skipped
+
+  // Throws Error naming the invalid field.
+  void Check() const;
+};
+
+// An anchor associated with the trajectory, in the local ENU frame of GeorefResult::origin.
+struct AnchorPair {
+  frame_t frame = kInvalidFrame;
+  double timestamp_s = 0.0;
+  Rigid3d vo_from_cam;  // VO pose at the anchor's time
+  Eigen::Vector3d centre_in_enu = Eigen::Vector3d::Zero();
+  std::optional<Eigen::Quaterniond> enu_from_cam;  // in the origin's ENU axes
+};
+
+// A (piecewise) similarity from the VO frame to ENU: intervals between `times` (one Sim3d per
+// interval, the first and last extended outwards) and, optionally, rotations per anchor time
+// interpolated for the orientation. A single Sim3d is the one-interval case.
+struct GeorefTransform {
+  std::vector<double> times;     // anchor times (>= 2 for piecewise; empty for one Sim3d)
+  std::vector<Sim3d> intervals;  // times.size() - 1 entries, or one
+  std::vector<Eigen::Quaterniond> rotations;  // enu_from_vo per time (optional)
+
+  // ENU pose (enu_from_cam, centre in ENU) of a VO pose at time t, and the scale used there
+  // (metres per VO unit).
+  Rigid3d Map(double timestamp_s, const Rigid3d& vo_from_cam, double* scale = nullptr) const;
+};
+
+// The three methods on associated anchors (time order). Throw Error naming the problem (too few
+// anchors, missing orientation, collinear anchors, a scale that is not positive).
+GeorefTransform PaperTransform(const std::vector<AnchorPair>& anchors, int second_anchor = -1);
+GeorefTransform Sim3Transform(const std::vector<AnchorPair>& anchors);
+GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
+                                   double min_anchor_spacing_m = 1.0);
+
+struct GeorefMethodSummary {
+  GeorefMethod method = GeorefMethod::kPiecewise;
+  int anchors_used = 0;    // anchors that define the transform
+  double min_scale = 0.0;  // metres per VO unit over the intervals
+  double max_scale = 0.0;
+  double anchor_rms_m = 0.0;  // |mapped VO centre - anchor centre| over all associated anchors
+  double anchor_max_m = 0.0;
+  int64_t rows_ok = 0;
+  int64_t rows_lost = 0;  // no VO pose at the row's time
+};
+
+struct GeorefResult {
+  ResultTable table;               // rows per method (extra column scale_m_per_unit)
+  Geodetic origin;                 // of the ENU frame used (the first associated anchor)
+  int64_t anchors_ok = 0;          // status ok anchors in the file
+  int64_t anchors_associated = 0;  // of them, with a VO pose at their time
+  std::vector<GeorefMethodSummary> methods;
+};
+
+// Output times: one row per entry (e.g. the drive's frames); empty = one row per VO pose.
+struct GeorefFrame {
+  frame_t frame = kInvalidFrame;
+  double timestamp_s = 0.0;
+};
+
+// Georeferences `trajectory` with `anchors` by every method of options.methods. Throws Error
+// (naming the anchors file) when fewer than two anchors can be associated, and as above.
+GeorefResult Georeference(const ImportedTrajectory& trajectory,
+                          const AnchorSet& anchors,
+                          const std::vector<GeorefFrame>& frames,
+                          const GeorefOptions& options);
+
+}  // namespace epiloc

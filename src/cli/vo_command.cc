@@ -1,0 +1,61 @@
+#include <cstdio>
+#include <string>
+
+#include "cli_common.h"
+#include "epiloc/cli/commands.h"
+#include "epiloc/core/progress.h"
+#include "epiloc/io/drive.h"
+#include "epiloc/vo/visual_odometry.h"
+
+namespace epiloc {
+
+int RunVo(int argc, char** argv) {
+  CLI::App app(
+      "Monocular visual odometry of a drive's frames: KLT tracks, essential-matrix "
+      "initialisation, PnP tracking, keyframes and local bundle adjustment. Writes the camera "
+      "trajectory as TUM (relative frame and scale; segments after a tracking loss are joined, "
+      "see '# segment' lines) for `epiloc georef`.",
+      "vo");
+  CommonFlags flags;
+  AddCommonFlags(app, flags);
+  std::string drive_dir, out_path;
+  VoOptions options;
+  app.add_option("--drive", drive_dir, "Drive directory")->required();
+  app.add_option("--out", out_path, "TUM trajectory to write")->required();
+  app.add_option("--max-features", options.klt.max_features, "Tracked features per frame")
+      ->capture_default_str();
+  app.add_option("--init-min-flow-px", options.init_min_flow_px,
+                 "Median feature motion (pixels) before the map is initialised")
+      ->capture_default_str();
+  app.add_option("--max-error-px", options.max_error_px,
+                 "Inlier threshold of tracking, triangulation and BA (pixels)")
+      ->capture_default_str();
+  app.add_option("--min-inliers", options.min_inliers,
+                 "Fewer 2D-3D inliers in a frame means tracking is lost")
+      ->capture_default_str();
+  app.add_option("--keyframe-baseline-ratio", options.keyframe_baseline_ratio,
+                 "New keyframe when the baseline reaches this share of the scene depth")
+      ->capture_default_str();
+  app.add_option("--ba-window", options.ba_window, "Keyframes in the local bundle adjustment")
+      ->capture_default_str();
+  app.add_option("--threads", options.num_threads, "Bundle-adjustment threads")
+      ->capture_default_str();
+  if (auto code = Parse(app, flags, argc, argv)) return *code;
+
+  options.Check();
+  const Drive drive = LoadDrive(drive_dir);
+  Progress progress("vo", static_cast<int64_t>(drive.frames.size()));
+  const VoResult result = RunVisualOdometry(drive, options, progress.Callback());
+  progress.Finish();
+  WriteVoTrajectory(result, out_path, drive.name);
+  const VoSummary& s = result.summary;
+  std::printf(
+      "%s: %lld of %lld frames posed, %lld keyframes, %zu segment(s), %lld tracking loss(es), "
+      "%.1f inliers per frame, %.1f frames/s (bundle adjustment %.1f s of %.1f s)\n",
+      out_path.c_str(), static_cast<long long>(s.posed), static_cast<long long>(s.frames),
+      static_cast<long long>(s.keyframes), result.segments.size(), static_cast<long long>(s.lost),
+      s.mean_inliers, s.frames_per_s(), s.ba_seconds, s.seconds);
+  return kExitOk;
+}
+
+}  // namespace epiloc

@@ -1,0 +1,143 @@
+#include <algorithm>
+#include <cmath>
+
+#include "epiloc/core/error.h"
+#include "epiloc/georef/georef.h"
+
+namespace epiloc {
+namespace {
+
+// enu_from_vo implied by one anchor: R_k R_vo_k^T.
+Eigen::Quaterniond AnchorRotation(const AnchorPair& anchor) {
+  return (*anchor.enu_from_cam * anchor.vo_from_cam.rotation.conjugate()).normalized();
+}
+
+void RequireOrientations(const std::vector<AnchorPair>& anchors, const std::string& method) {
+  for (const AnchorPair& a : anchors) {
+    if (!a.enu_from_cam) {
+      Throw("{}: the anchor of frame {} (t = {} s) has no orientation (qw,qx,qy,qz); {} needs it",
+            method, a.frame, a.timestamp_s, method);
+    }
+  }
+}
+
+}  // namespace
+
+Rigid3d GeorefTransform::Map(double timestamp_s, const Rigid3d& vo_from_cam, double* scale) const {
+  size_t k = 0;
+  if (intervals.size() > 1) {
+    const auto it = std::upper_bound(times.begin(), times.end(), timestamp_s);
+    const size_t after = static_cast<size_t>(it - times.begin());
+    k = std::min(after > 0 ? after - 1 : 0, intervals.size() - 1);
+  }
+  const Sim3d& sim = intervals[k];
+  if (scale) *scale = sim.scale;
+  Eigen::Quaterniond enu_from_vo = sim.rotation;
+  if (!rotations.empty()) {
+    if (rotations.size() == 1 || timestamp_s <= times.front()) {
+      enu_from_vo = rotations.front();
+    } else if (timestamp_s >= times.back()) {
+      enu_from_vo = rotations.back();
+    } else {
+      const double w = (timestamp_s - times[k]) / (times[k + 1] - times[k]);
+      enu_from_vo = rotations[k].slerp(w, rotations[k + 1]);
+    }
+  }
+  return Rigid3d((enu_from_vo * vo_from_cam.rotation).normalized(), sim * vo_from_cam.translation);
+}
+
+GeorefTransform PaperTransform(const std::vector<AnchorPair>& anchors, int second_anchor) {
+  EPILOC_CHECK(anchors.size() >= 2, "paper: needs two anchors, got {}", anchors.size());
+  const int n = second_anchor < 0 ? static_cast<int>(anchors.size()) - 1 : second_anchor;
+  EPILOC_CHECK(n >= 1 && n < static_cast<int>(anchors.size()),
+               "paper: second anchor {} out of range [1, {}]", n, anchors.size() - 1);
+  const AnchorPair& first = anchors.front();
+  const AnchorPair& second = anchors[static_cast<size_t>(n)];
+  RequireOrientations({first}, "paper");
+  // Eq. 5: the VO axes unified with the map's at the first anchored keyframe.
+  const Eigen::Quaterniond rotation = AnchorRotation(first);
+  // Eq. 6, travel-direction component only: horizontal direction of the anchor chord.
+  const Eigen::Vector3d chord = second.centre_in_enu - first.centre_in_enu;
+  const Eigen::Vector3d horizontal(chord.x(), chord.y(), 0.0);
+  EPILOC_CHECK(horizontal.norm() > 1e-3,
+               "paper: the anchors of frames {} and {} are at the same horizontal position",
+               first.frame, second.frame);
+  const Eigen::Vector3d u = horizontal.normalized();
+  const double vo_along =
+      u.dot(rotation * (second.vo_from_cam.translation - first.vo_from_cam.translation));
+  const double scale = u.dot(chord) / vo_along;
+  EPILOC_CHECK(std::isfinite(scale) && scale > 0.0,
+               "paper: the VO moved {} units along the anchors' travel direction between frames "
+               "{} and {}; no positive scale",
+               vo_along, first.frame, second.frame);
+  // Eq. 7: X = s R (x - x_0) + X_0.
+  Sim3d sim;
+  sim.scale = scale;
+  sim.rotation = rotation;
+  sim.translation = first.centre_in_enu - scale * (rotation * first.vo_from_cam.translation);
+  GeorefTransform transform;
+  transform.intervals = {sim};
+  return transform;
+}
+
+GeorefTransform Sim3Transform(const std::vector<AnchorPair>& anchors) {
+  EPILOC_CHECK(anchors.size() >= 3, "sim3: needs at least three anchors, got {}", anchors.size());
+  std::vector<Eigen::Vector3d> source, target;
+  for (const AnchorPair& a : anchors) {
+    source.push_back(a.vo_from_cam.translation);
+    target.push_back(a.centre_in_enu);
+  }
+  const auto sim = FitSim3(source, target);
+  if (!sim) {
+    Throw(
+        "sim3: the {} anchors lie on one line in the VO frame; the rotation about it is not "
+        "determined (use piecewise or paper)",
+        anchors.size());
+  }
+  GeorefTransform transform;
+  transform.intervals = {*sim};
+  return transform;
+}
+
+GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
+                                   double min_anchor_spacing_m) {
+  RequireOrientations(anchors, "piecewise");
+  std::vector<const AnchorPair*> kept;
+  for (const AnchorPair& a : anchors) {
+    if (!kept.empty() &&
+        (a.centre_in_enu - kept.back()->centre_in_enu).norm() < min_anchor_spacing_m) {
+      continue;
+    }
+    kept.push_back(&a);
+  }
+  EPILOC_CHECK(kept.size() >= 2,
+               "piecewise: needs two anchors at least {} m apart, got {} of {} anchors",
+               min_anchor_spacing_m, kept.size(), anchors.size());
+  GeorefTransform transform;
+  for (const AnchorPair* a : kept) {
+    transform.times.push_back(a->timestamp_s);
+    transform.rotations.push_back(AnchorRotation(*a));
+  }
+  for (size_t k = 0; k + 1 < kept.size(); ++k) {
+    const AnchorPair& a = *kept[k];
+    const AnchorPair& b = *kept[k + 1];
+    const Eigen::Vector3d vo_chord = b.vo_from_cam.translation - a.vo_from_cam.translation;
+    const Eigen::Vector3d enu_chord = b.centre_in_enu - a.centre_in_enu;
+    if (vo_chord.norm() <= 1e-12 * (1.0 + a.vo_from_cam.translation.norm())) {
+      Throw(
+          "piecewise: the VO did not move between the anchors of frames {} and {} while the "
+          "anchors are {:.2f} m apart",
+          a.frame, b.frame, enu_chord.norm());
+    }
+    const Eigen::Quaterniond mean = transform.rotations[k].slerp(0.5, transform.rotations[k + 1]);
+    const Eigen::Quaterniond fix = Eigen::Quaterniond::FromTwoVectors(mean * vo_chord, enu_chord);
+    Sim3d sim;
+    sim.scale = enu_chord.norm() / vo_chord.norm();
+    sim.rotation = (fix * mean).normalized();
+    sim.translation = a.centre_in_enu - sim.scale * (sim.rotation * a.vo_from_cam.translation);
+    transform.intervals.push_back(sim);
+  }
+  return transform;
+}
+
+}  // namespace epiloc

@@ -1,0 +1,127 @@
+#include "epiloc/georef/trajectory_import.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "epiloc/core/csv.h"
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+namespace {
+
+const std::vector<std::string> kFormatNames = {"auto", "tum", "kitti"};
+constexpr double kNanosecondThreshold = 1e14;  // no plausible time in seconds is this large
+constexpr double kSameTime_s = 1e-3;
+
+// Number of whitespace-separated tokens of the first data line (0 if none).
+size_t FirstLineTokens(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) Throw("{}: cannot open trajectory file", path);
+  std::string line;
+  while (std::getline(in, line)) {
+    const std::string trimmed = Trim(line);
+    if (trimmed.empty() || trimmed[0] == '#') continue;
+    std::istringstream tokens(trimmed);
+    std::string token;
+    size_t count = 0;
+    while (tokens >> token) ++count;
+    return count;
+  }
+  return 0;
+}
+
+}  // namespace
+
+TrajectoryFileFormat ParseTrajectoryFileFormat(const std::string& name) {
+  for (size_t i = 0; i < kFormatNames.size(); ++i) {
+    if (kFormatNames[i] == name) return static_cast<TrajectoryFileFormat>(i);
+  }
+  Throw("unknown trajectory format '{}' (known: {})", name, fmt::join(kFormatNames, ", "));
+}
+
+void TrajectoryImportOptions::Check() const {
+  EPILOC_CHECK(std::isfinite(time_offset_s), "--time-offset-s must be finite");
+  EPILOC_CHECK(!relative_times || !frame_times.empty(),
+               "--relative-times needs the drive's frame times (--drive)");
+  EPILOC_CHECK(!relative_times || time_offset_s == 0.0,
+               "give either --relative-times or --time-offset-s, not both");
+}
+
+ImportedTrajectory ImportTrajectory(const std::string& path,
+                                    const TrajectoryImportOptions& options) {
+  options.Check();
+  ImportedTrajectory trajectory;
+  trajectory.path = path;
+  trajectory.format = options.format;
+  if (trajectory.format == TrajectoryFileFormat::kAuto) {
+    const size_t tokens = FirstLineTokens(path);
+    if (tokens == 8) {
+      trajectory.format = TrajectoryFileFormat::kTum;
+    } else if (tokens == 12) {
+      trajectory.format = TrajectoryFileFormat::kKitti;
+    } else {
+      Throw(
+          "{}: cannot tell the trajectory format: the first line has {} numbers (TUM: 8, "
+          "KITTI: 12); give --vo-format",
+          path, tokens);
+    }
+  }
+  if (trajectory.format == TrajectoryFileFormat::kTum) {
+    EPILOC_CHECK(options.times_path.empty(), "{}: a times file applies to KITTI poses only", path);
+    trajectory.poses = ReadTumPoses(path);
+    if (!trajectory.poses.empty() && trajectory.poses.front().timestamp_s > kNanosecondThreshold) {
+      for (StampedPose& pose : trajectory.poses) pose.timestamp_s *= 1e-9;
+    }
+  } else {
+    trajectory.poses = ReadKittiPoses(path, options.times_path);
+    if (options.times_path.empty() && !options.frame_times.empty()) {
+      if (trajectory.poses.size() != options.frame_times.size()) {
+        Throw("{}: {} KITTI poses but the drive has {} frames; give the times file (--vo-times)",
+              path, trajectory.poses.size(), options.frame_times.size());
+      }
+      for (size_t i = 0; i < trajectory.poses.size(); ++i) {
+        trajectory.poses[i].timestamp_s = options.frame_times[i];
+      }
+    }
+  }
+  if (trajectory.poses.empty()) Throw("{}: the trajectory has no poses", path);
+  const double offset =
+      options.relative_times ? options.frame_times.front() : options.time_offset_s;
+  for (size_t i = 0; i < trajectory.poses.size(); ++i) {
+    StampedPose& pose = trajectory.poses[i];
+    pose.timestamp_s += offset;
+    if (i > 0 && pose.timestamp_s <= trajectory.poses[i - 1].timestamp_s) {
+      Throw("{}: timestamp {} is not after the previous one", Where(path, pose.line),
+            FormatDouble(pose.timestamp_s));
+    }
+  }
+  return trajectory;
+}
+
+std::optional<Rigid3d> InterpolatePose(const std::vector<StampedPose>& poses,
+                                       double timestamp_s,
+                                       double max_gap_s) {
+  if (poses.empty()) return std::nullopt;
+  const auto after =
+      std::lower_bound(poses.begin(), poses.end(), timestamp_s,
+                       [](const StampedPose& pose, double t) { return pose.timestamp_s < t; });
+  if (after != poses.end() && after->timestamp_s - timestamp_s <= kSameTime_s) {
+    return after->world_from_cam;
+  }
+  if (after != poses.begin() && timestamp_s - std::prev(after)->timestamp_s <= kSameTime_s) {
+    return std::prev(after)->world_from_cam;
+  }
+  if (after == poses.begin() || after == poses.end()) return std::nullopt;
+  const StampedPose& a = *std::prev(after);
+  const StampedPose& b = *after;
+  if (b.timestamp_s - a.timestamp_s > max_gap_s) return std::nullopt;
+  const double w = (timestamp_s - a.timestamp_s) / (b.timestamp_s - a.timestamp_s);
+  return Rigid3d(a.world_from_cam.rotation.slerp(w, b.world_from_cam.rotation),
+                 (1.0 - w) * a.world_from_cam.translation + w * b.world_from_cam.translation);
+}
+
+}  // namespace epiloc
