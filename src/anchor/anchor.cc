@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
@@ -30,17 +31,27 @@ bool BetterAttempt(const Attempt& a, const Attempt& b) {
   return a.pnp.rmse_px < b.pnp.rmse_px;
 }
 
-// LiftPixel, refused where the 3x3 depths around the pixel are not one surface (an edge, where
-// the nearest pixel's depth may belong to either side).
-bool LiftAwayFromEdges(const CloudRenderResult& render,
-                       const Camera& camera,
-                       const Rigid3d& cam_from_map,
-                       const cv::Point2f& pixel,
-                       double max_depth_step,
-                       Eigen::Vector3d* point) {
+// The 3-D point behind a rendered feature. The z-buffer keeps the nearest of several noisy
+// points and a splat has one depth over its whole square, so the depth of the pixel alone is
+// biased towards the camera (by about the map's range noise) and stepped on oblique surfaces.
+// Instead, the map points whose splats won the pixels within lift_radius_px are taken, those of
+// the front surface kept (depth within max_depth_step of the nearest, plus 0.1 m), a plane
+// fitted to them (least squares), and the pixel's ray intersected with it. Refused at depth
+// edges (the 3x3 depths around the pixel spread more than the front-surface tolerance), with
+// fewer than 6 front points, or where the ray grazes the plane (then the depth of the points'
+// centroid along the ray is used if they are compact in depth).
+bool LiftOnLocalPlane(const CloudRenderResult& render,
+                      const Camera& camera,
+                      const Rigid3d& cam_from_map,
+                      const PointCloud& map,
+                      const cv::Point2f& pixel,
+                      int lift_radius_px,
+                      double max_depth_step,
+                      Eigen::Vector3d* point) {
   const int u = static_cast<int>(std::lround(pixel.x));
   const int v = static_cast<int>(std::lround(pixel.y));
-  if (u < 1 || v < 1 || u >= render.depth.cols - 1 || v >= render.depth.rows - 1) return false;
+  const int r = std::max(1, lift_radius_px);
+  if (u < r || v < r || u >= render.depth.cols - r || v >= render.depth.rows - r) return false;
   float lo = INFINITY, hi = 0.f;
   for (int dv = -1; dv <= 1; ++dv) {
     const float* row = render.depth.ptr<float>(v + dv);
@@ -51,8 +62,47 @@ bool LiftAwayFromEdges(const CloudRenderResult& render,
       hi = std::max(hi, d);
     }
   }
-  if (hi - lo > max_depth_step * lo + 0.1) return false;
-  return LiftPixel(render, camera, cam_from_map, pixel.x, pixel.y, point);
+  const double tolerance = max_depth_step * lo + 0.1;
+  if (hi - lo > tolerance) return false;
+
+  std::vector<int32_t> indices;
+  indices.reserve((2 * r + 1) * (2 * r + 1));
+  for (int dv = -r; dv <= r; ++dv) {
+    const int32_t* row = render.point_index.ptr<int32_t>(v + dv);
+    for (int du = -r; du <= r; ++du) {
+      if (row[u + du] >= 0) indices.push_back(row[u + du]);
+    }
+  }
+  std::sort(indices.begin(), indices.end());
+  indices.erase(std::unique(indices.begin(), indices.end()), indices.end());
+  std::vector<Eigen::Vector3d> front;
+  front.reserve(indices.size());
+  for (const int32_t i : indices) {
+    const Eigen::Vector3d x = cam_from_map * map.positions[i].cast<double>();
+    if (x.z() > 0 && x.z() <= lo + tolerance) front.push_back(x);
+  }
+  if (front.size() < 6) return false;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& x : front) centroid += x;
+  centroid /= static_cast<double>(front.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const auto& x : front) scatter += (x - centroid) * (x - centroid).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter);
+  const Eigen::Vector3d normal = eigen.eigenvectors().col(0);
+  const Eigen::Vector2d n = camera.Unproject(Eigen::Vector2d(pixel.x, pixel.y));
+  const Eigen::Vector3d ray(n.x(), n.y(), 1.0);
+  const double along = normal.dot(ray) / ray.norm();
+  // A plane needs spread in two directions (not a line of points) and a ray not grazing it.
+  const bool planar = eigen.eigenvalues()(1) > 4.0 * eigen.eigenvalues()(0) + 1e-12;
+  double depth;
+  if (planar && std::abs(along) > 0.2) {
+    depth = normal.dot(centroid) / normal.dot(ray);
+  } else {
+    depth = centroid.z();
+  }
+  if (!(depth > 0) || std::abs(depth - 0.5 * (lo + hi)) > tolerance) return false;
+  *point = cam_from_map.Inverse() * (depth * ray);
+  return true;
 }
 
 Attempt TryPose(const ImageFeatures& frame,
@@ -60,10 +110,12 @@ Attempt TryPose(const ImageFeatures& frame,
                 const PointCloud& map,
                 const Rigid3d& map_from_cam,
                 double search_radius_px,
+                double splat_size_m,
                 const AnchorOptions& options) {
   Attempt attempt;
   const Rigid3d cam_from_map = map_from_cam.Inverse();
   CloudRenderOptions render_options = options.render;
+  render_options.splat_size_m = splat_size_m;
   render_options.num_threads = 1;  // frames run in parallel
   const CloudRenderResult render = RenderCloud(map, camera, cam_from_map, render_options);
   const cv::Mat valid = render.depth > 0.f;
@@ -90,9 +142,9 @@ Attempt TryPose(const ImageFeatures& frame,
   std::vector<Eigen::Vector3d> points;
   for (size_t k = 0; k < matches.frame_index.size(); ++k) {
     Eigen::Vector3d x;
-    if (!LiftAwayFromEdges(render, camera, cam_from_map,
-                           rendered.keypoints[matches.render_index[k]].pt, options.max_depth_step,
-                           &x)) {
+    if (!LiftOnLocalPlane(render, camera, cam_from_map, map,
+                          rendered.keypoints[matches.render_index[k]].pt, options.lift_radius_px,
+                          options.max_depth_step, &x)) {
       continue;
     }
     const cv::Point2f& p = frame.keypoints[matches.frame_index[k]].pt;
@@ -191,6 +243,10 @@ void AnchorOptions::Check() const {
   EPILOC_CHECK(std::isfinite(max_depth_step) && max_depth_step > 0,
                "anchor options: max_depth_step must be > 0");
   EPILOC_CHECK(erode_px >= 0, "anchor options: erode_px must be >= 0");
+  EPILOC_CHECK(std::isfinite(refine_splat_size_m) && refine_splat_size_m > 0,
+               "anchor options: refine_splat_size_m must be > 0, got {}", refine_splat_size_m);
+  EPILOC_CHECK(lift_radius_px >= 1 && lift_radius_px <= 16,
+               "anchor options: lift_radius_px must be in [1, 16], got {}", lift_radius_px);
   EPILOC_CHECK(min_inliers >= pnp.min_inliers, "--min-inliers must be >= {} (PnP), got {}",
                pnp.min_inliers, min_inliers);
   EPILOC_CHECK(std::isfinite(max_rmse_px) && max_rmse_px > 0, "--max-rmse must be > 0 px");
@@ -252,7 +308,8 @@ AnchorResult AnchorFrame(const cv::Mat& image,
   bool any_covered = false;
   double max_coverage = 0.0;
   for (size_t c = 0; c < candidates.size(); ++c) {
-    Attempt attempt = TryPose(frame, camera, local_map, candidates[c], 0.0, options);
+    Attempt attempt =
+        TryPose(frame, camera, local_map, candidates[c], 0.0, options.render.splat_size_m, options);
     any_covered = any_covered || attempt.covered;
     max_coverage = std::max(max_coverage, attempt.coverage);
     if (c == 0 || BetterAttempt(attempt, best)) {
@@ -278,8 +335,9 @@ AnchorResult AnchorFrame(const cv::Mat& image,
   }
 
   for (int round = 0; round < options.refine_rounds; ++round) {
-    Attempt refined =
-        TryPose(frame, camera, local_map, best.map_from_cam, options.guided_radius_px, options);
+    Attempt refined = TryPose(frame, camera, local_map, best.map_from_cam, options.guided_radius_px,
+                              std::min(options.render.splat_size_m, options.refine_splat_size_m),
+                              options);
     if (!refined.pnp.success) break;
     const double moved_m = (refined.map_from_cam.translation - best.map_from_cam.translation).norm();
     const double turned_deg =

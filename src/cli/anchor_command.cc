@@ -128,6 +128,15 @@ int RunAnchor(int argc, char** argv) {
   app.add_option("--candidates", options.candidates.num_candidates,
                  "Candidate poses rendered per frame, the prior included")
       ->capture_default_str();
+  app.add_option("--along-range", options.candidates.along_range_m,
+                 "Candidates: along-track offsets up to +-this, metres (about the GNSS sigma)")
+      ->capture_default_str();
+  app.add_option("--lateral-range", options.candidates.lateral_range_m,
+                 "Candidates: lateral offsets up to +-this, metres")
+      ->capture_default_str();
+  app.add_option("--yaw-range", options.candidates.yaw_range_deg,
+                 "Candidates: heading offsets up to +-this, degrees")
+      ->capture_default_str();
   app.add_option("--matcher", matcher, "akaze | sift")->capture_default_str();
   app.add_option("--shading", shading, "Rendering: auto | intensity | colour")
       ->capture_default_str();

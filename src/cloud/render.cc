@@ -130,11 +130,14 @@ int64_t DrawPoints(const Eigen::Vector3f* positions,
   return drawn;
 }
 
-// Side of a splat in pixels: clamp(round(splat_px_m / depth_m), 1, max_splat_px).
+// Side of a splat in pixels: the odd number nearest splat_px_m / depth_m, clamped to
+// [1, max_splat_px] (max_splat_px itself if it is the limit, even or not). Odd sides keep a
+// splat centred on its point's pixel: an even side cannot be, and would shift the rendering by
+// half a pixel up and left against the depth (a bias of centimetres in a pose solved from it).
 inline int SplatSide(float depth_m, float splat_px_m, int max_splat_px) {
   const float side = splat_px_m / depth_m;
-  if (side >= static_cast<float>(max_splat_px) - 0.5f) return max_splat_px;
-  return std::max(1, static_cast<int>(side + 0.5f));
+  if (side >= static_cast<float>(max_splat_px)) return max_splat_px;
+  return std::min(max_splat_px, 1 + 2 * std::max(0, static_cast<int>((side - 1.0f) * 0.5f + 0.5f)));
 }
 
 // Writes rows [row_begin, row_end) of `splats`: the nearest key of all splats of the pixel

@@ -179,11 +179,13 @@ TEST(CloudRender, SplatSideGrowsAsDepthShrinksPerTheRule) {
   const int u = 300, v = 200;
   int previous_side = 0;
   // splat_size_m * fx / z = 50 / z, away from rounding ties.
-  for (const double z : {80.0, 60.0, 30.0, 17.0, 13.0, 11.0, 9.0, 7.5, 6.0, 5.0, 2.0}) {
+  for (const double z : {80.0, 60.0, 30.0, 17.0, 13.0, 11.0, 9.0, 7.5, 6.5, 6.0, 5.0, 2.0}) {
     const CloudRenderResult r =
         RenderCloud(CloudOf({PointAtPixel(camera, pose, u, v, z)}), camera, pose, options);
-    const int side = std::clamp(static_cast<int>(std::lround(options.splat_size_m * camera.fx / z)),
-                                1, options.max_splat_px);
+    // The odd side nearest to 50 / z: 1 beyond z = 25 m, 3 beyond 12.5, 5 beyond 8.33, 7 beyond
+    // 6.25, else 9.
+    const double size = options.splat_size_m * camera.fx / z;
+    const int side = size >= 9 ? 9 : size < 2 ? 1 : size < 4 ? 3 : size < 6 ? 5 : size < 8 ? 7 : 9;
     const cv::Rect expected(u - side / 2, v - side / 2, side, side);
     EXPECT_EQ(cv::boundingRect(r.depth > 0), expected) << "z " << z;
     EXPECT_EQ(cv::countNonZero(r.depth), side * side) << "z " << z;

@@ -73,6 +73,10 @@ struct AnchorOptions {
   int refine_rounds = 3;            // re-renders at the solved pose (0 = none)
   bool photometric = false;         // finish with direct photometric refinement (photometric.h)
   PhotometricOptions photometric_options;
+  double refine_splat_size_m = 0.03;  // splat size of the refinement renderings (at most the
+                                      // first one's): the nearest splat wins a pixel, so large
+                                      // splats drag texture on oblique surfaces towards the
+                                      // vanishing point (centimetres of along-track bias)
   double guided_radius_px = 12.0;   // refinement rounds match within this radius (0 = anywhere)
   double converged_m = 0.005;       // refinement stops when the pose moves less than this ...
   double converged_deg = 0.02;      // ... and turns less than this
@@ -80,6 +84,8 @@ struct AnchorOptions {
   double min_coverage = 0.02;       // share of the view a candidate's rendering must fill
   double max_depth_step = 0.05;     // lifted pixels whose 3x3 depths spread more than this
                                     // fraction (plus 0.1 m) are at an edge and skipped
+  int lift_radius_px = 3;           // rendered features are lifted onto a plane fitted to the
+                                    // map points drawn within this many pixels
   int erode_px = 4;                 // rendered features this close to empty pixels are skipped
   int min_inliers = 40;             // reliability: PnP inliers at least
   double max_rmse_px = 1.5;         // reliability: reprojection RMSE at most, pixels

@@ -89,12 +89,12 @@ std::optional<PosePrior> MakePosePrior(const PositionTrack& gnss,
 // `seed`). Offsets are in the prior camera's level frame (along = its heading, lateral = to its
 // right, height = up).
 struct CandidateOptions {
-  int num_candidates = 5;         // poses rendered per frame, the prior included (>= 1)
+  int num_candidates = 7;         // poses rendered per frame, the prior included (>= 1)
   double yaw_range_deg = 6.0;     // heading perturbation
   double pitch_range_deg = 1.0;   // pitch perturbation (random candidates only)
   double roll_range_deg = 0.5;    // roll perturbation (random candidates only)
   double along_range_m = 4.0;     // along-track offset
-  double lateral_range_m = 1.5;   // lateral offset
+  double lateral_range_m = 3.0;   // lateral offset (a consumer GPS is often metres off the lane)
   double height_range_m = 0.2;    // height offset (random candidates only)
 
   // Throws Error naming the first invalid field.

@@ -9,9 +9,10 @@
 //     round(u), round(v) lies outside the image; the parts of splats of culled points that would
 //     reach into the image are not drawn.
 //  2. Splatting and z-buffer. A drawn point at depth z covers a square of side
-//     s = clamp(round(splat_size_m * fx / z), 1, max_splat_px) pixels, columns
-//     [round(u) - s/2, round(u) - s/2 + s) (integer division; rows likewise) with constant
-//     depth z. Each pixel keeps the nearest point; equal depths go to the lower point index, so
+//     s = the odd number nearest splat_size_m * fx / z, within [1, max_splat_px] (max_splat_px
+//     once the size reaches it), pixels: columns [round(u) - s/2, round(u) - s/2 + s) (integer
+//     division; rows likewise) with constant depth z. Odd sides keep the splat centred on the
+//     point's pixel (an even one would shift the rendering by half a pixel). Each pixel keeps the nearest point; equal depths go to the lower point index, so
 //     the result is the same for any number of threads.
 //  3. Hole filling (hole_fill_iterations passes). For a pixel of depth d (infinite where empty),
 //     walk each of the 8 directions (4 axes: horizontal, vertical, two diagonals) up to
