@@ -138,6 +138,14 @@ int RunAnchor(int argc, char** argv) {
                  "Candidates: heading offsets up to +-this, degrees")
       ->capture_default_str();
   app.add_option("--matcher", matcher, "akaze | sift")->capture_default_str();
+  app.add_option("--match-scale", options.matching.scale,
+                 "Frame and rendering are resized by this before feature detection")
+      ->capture_default_str();
+  app.add_option("--match-blur", options.matching.blur_sigma_px,
+                 "Gaussian blur (pixels, at the detection scale) before feature detection")
+      ->capture_default_str();
+  app.add_option("--ratio", options.matching.ratio, "Lowe's ratio test threshold")
+      ->capture_default_str();
   app.add_option("--shading", shading, "Rendering: auto | intensity | colour")
       ->capture_default_str();
   app.add_option("--camera-height", options.prior.camera_height_m,
