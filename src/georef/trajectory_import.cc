@@ -56,6 +56,7 @@ ImportedTrajectory ImportTrajectory(const std::string& path,
   options.Check();
   ImportedTrajectory trajectory;
   trajectory.path = path;
+  bool on_drive_clock = false;  // KITTI poses timed by the drive's frames
   trajectory.format = options.format;
   if (trajectory.format == TrajectoryFileFormat::kAuto) {
     const size_t tokens = FirstLineTokens(path);
@@ -79,6 +80,7 @@ ImportedTrajectory ImportTrajectory(const std::string& path,
   } else {
     trajectory.poses = ReadKittiPoses(path, options.times_path);
     if (options.times_path.empty() && !options.frame_times.empty()) {
+      on_drive_clock = true;
       if (trajectory.poses.size() != options.frame_times.size()) {
         Throw("{}: {} KITTI poses but the drive has {} frames; give the times file (--vo-times)",
               path, trajectory.poses.size(), options.frame_times.size());
@@ -89,8 +91,10 @@ ImportedTrajectory ImportTrajectory(const std::string& path,
     }
   }
   if (trajectory.poses.empty()) Throw("{}: the trajectory has no poses", path);
-  const double offset =
-      options.relative_times ? options.frame_times.front() : options.time_offset_s;
+  // Relative times count from the drive's first frame; poses timed by the frames already do.
+  const double offset = !options.relative_times ? options.time_offset_s
+                        : on_drive_clock        ? 0.0
+                                                : options.frame_times.front();
   for (size_t i = 0; i < trajectory.poses.size(); ++i) {
     StampedPose& pose = trajectory.poses[i];
     pose.timestamp_s += offset;

@@ -11,7 +11,8 @@
 //           is the i-th frame; its time is line i of `times_path` (ORB-SLAM's times.txt), else
 //           the time of the i-th frame of the drive (`frame_times`), else i seconds.
 // ORB-SLAM and KITTI odometry times are seconds since the sequence start: give `time_offset_s`
-// (added to every time) or `relative_times` (offset = time of the drive's first frame).
+// (added to every time) or `relative_times` (offset = time of the drive's first frame; KITTI
+// poses timed by the drive's frames are on its clock already and keep their times).
 #pragma once
 
 #include <optional>
