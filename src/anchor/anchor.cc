@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numeric>
 
 #include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
@@ -135,9 +136,32 @@ Attempt TryPose(const ImageFeatures& frame,
                                         cv::Size(2 * options.erode_px + 1, 2 * options.erode_px + 1)));
   }
   const ImageFeatures rendered = ExtractFeatures(grey, options.matching, mask);
+  // Frame features where the map cannot be (sky, the upper scene a LiDAR does not reach, beyond
+  // its range) have no counterpart and only crowd the ratio test: keep those within
+  // frame_margin_px of the rendered area.
+  cv::Mat near_map;
+  cv::dilate(valid, near_map,
+             cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * options.frame_margin_px + 1,
+                                                                2 * options.frame_margin_px + 1)));
+  ImageFeatures frame_near;
+  std::vector<int> frame_rows;
+  for (size_t i = 0; i < frame.keypoints.size(); ++i) {
+    const cv::Point2f& p = frame.keypoints[i].pt;
+    const int u = std::clamp(static_cast<int>(std::lround(p.x)), 0, near_map.cols - 1);
+    const int v = std::clamp(static_cast<int>(std::lround(p.y)), 0, near_map.rows - 1);
+    if (near_map.at<uint8_t>(v, u) == 0) continue;
+    frame_near.keypoints.push_back(frame.keypoints[i]);
+    frame_rows.push_back(static_cast<int>(i));
+    if (static_cast<int>(frame_rows.size()) >= options.max_frame_features) break;  // strongest first
+  }
+  frame_near.descriptors.create(static_cast<int>(frame_rows.size()), frame.descriptors.cols,
+                                frame.descriptors.type());
+  for (size_t k = 0; k < frame_rows.size(); ++k) {
+    frame.descriptors.row(frame_rows[k]).copyTo(frame_near.descriptors.row(static_cast<int>(k)));
+  }
   ImageMatchOptions match_options = options.matching;
   match_options.search_radius_px = search_radius_px;
-  const ImageMatches matches = MatchFeatures(frame, rendered, match_options);
+  const ImageMatches matches = MatchFeatures(frame_near, rendered, match_options);
   std::vector<Eigen::Vector2d> pixels;
   std::vector<Eigen::Vector3d> points;
   for (size_t k = 0; k < matches.frame_index.size(); ++k) {
@@ -147,7 +171,7 @@ Attempt TryPose(const ImageFeatures& frame,
                           options.max_depth_step, &x)) {
       continue;
     }
-    const cv::Point2f& p = frame.keypoints[matches.frame_index[k]].pt;
+    const cv::Point2f& p = frame_near.keypoints[matches.frame_index[k]].pt;
     pixels.emplace_back(p.x, p.y);
     points.push_back(x);
   }
@@ -160,6 +184,23 @@ Attempt TryPose(const ImageFeatures& frame,
   }
   attempt.map_from_cam = attempt.pnp.cam_from_world.Inverse();
   return attempt;
+}
+
+// The features reordered by decreasing detector response.
+ImageFeatures StrongestFirst(const ImageFeatures& features) {
+  std::vector<int> order(features.keypoints.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return features.keypoints[a].response > features.keypoints[b].response;
+  });
+  ImageFeatures sorted;
+  sorted.descriptors.create(static_cast<int>(order.size()), features.descriptors.cols,
+                            features.descriptors.type());
+  for (size_t k = 0; k < order.size(); ++k) {
+    sorted.keypoints.push_back(features.keypoints[order[k]]);
+    features.descriptors.row(order[k]).copyTo(sorted.descriptors.row(static_cast<int>(k)));
+  }
+  return sorted;
 }
 
 // Pitch (optical axis above the horizon) and roll (x axis below it) of a camera, degrees.
@@ -243,6 +284,8 @@ void AnchorOptions::Check() const {
   EPILOC_CHECK(std::isfinite(max_depth_step) && max_depth_step > 0,
                "anchor options: max_depth_step must be > 0");
   EPILOC_CHECK(erode_px >= 0, "anchor options: erode_px must be >= 0");
+  EPILOC_CHECK(frame_margin_px >= 0, "anchor options: frame_margin_px must be >= 0");
+  EPILOC_CHECK(max_frame_features >= 1, "anchor options: max_frame_features must be >= 1");
   EPILOC_CHECK(std::isfinite(refine_splat_size_m) && refine_splat_size_m > 0,
                "anchor options: refine_splat_size_m must be > 0, got {}", refine_splat_size_m);
   EPILOC_CHECK(lift_radius_px >= 1 && lift_radius_px <= 16,
@@ -296,7 +339,9 @@ AnchorResult AnchorFrame(const cv::Mat& image,
 
   cv::Mat grey = image;
   if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
-  const ImageFeatures frame = ExtractFeatures(grey, options.matching);
+  ImageMatchOptions frame_options = options.matching;
+  frame_options.max_features = 0;  // all: each candidate keeps the strongest near its map
+  const ImageFeatures frame = StrongestFirst(ExtractFeatures(grey, frame_options));
   result.num_frame_features = static_cast<int>(frame.keypoints.size());
 
   // Candidates (frames differ in their seed so the random candidates do too).

@@ -86,6 +86,9 @@ struct AnchorOptions {
                                     // fraction (plus 0.1 m) are at an edge and skipped
   int lift_radius_px = 3;           // rendered features are lifted onto a plane fitted to the
                                     // map points drawn within this many pixels
+  int frame_margin_px = 24;         // frame features farther than this from the rendered area
+                                    // are not matched (they cannot have a counterpart)
+  int max_frame_features = 5000;    // strongest frame features matched per rendering
   int erode_px = 4;                 // rendered features this close to empty pixels are skipped
   int min_inliers = 40;             // reliability: PnP inliers at least
   double max_rmse_px = 1.5;         // reliability: reprojection RMSE at most, pixels
