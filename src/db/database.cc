@@ -265,6 +265,17 @@ void Database::Impl::PrepareStatements() {
       Prepare("SELECT image_id, dims, data FROM global_descriptors ORDER BY image_id");
   count_global_descriptors = Prepare("SELECT count(*) FROM global_descriptors");
   clear_global_descriptors = Prepare("DELETE FROM global_descriptors");
+  write_point = Prepare(
+      "INSERT INTO points3d (e_m, n_m, u_m, error_px, num_observations) VALUES (?, ?, ?, ?, ?)");
+  write_observation =
+      Prepare("INSERT INTO observations (image_id, feature_index, point_id) VALUES (?, ?, ?)");
+  read_frame_points = Prepare(
+      "SELECT o.feature_index, p.point_id, p.e_m, p.n_m, p.u_m FROM observations o "
+      "JOIN points3d p ON p.point_id = o.point_id WHERE o.image_id = ? "
+      "ORDER BY o.feature_index");
+  count_points = Prepare("SELECT count(*) FROM points3d");
+  count_observations = Prepare("SELECT count(*) FROM observations");
+  clear_points = Prepare("DELETE FROM points3d");  // observations go with them (ON DELETE CASCADE)
 }
 
 void Database::SetMeta(const std::string& key, const std::string& value) {
@@ -640,6 +651,65 @@ int64_t Database::NumGlobalDescriptors() const {
 
 void Database::ClearGlobalDescriptors() {
   Query(impl_->clear_global_descriptors, path_, "clearing global descriptors").Run();
+}
+
+int64_t Database::WritePoint(const DbPoint3d& point,
+                             const std::vector<DbObservation>& observations) {
+  EPILOC_CHECK(point.position_in_enu.allFinite() && std::isfinite(point.error_px) &&
+                   point.error_px >= 0,
+               "{}: invalid 3-D point (position or error not finite)", path_);
+  EPILOC_CHECK(observations.size() >= 2, "{}: a 3-D point needs at least 2 observations, got {}",
+               path_, observations.size());
+  Savepoint savepoint(impl_->savepoint, impl_->release, impl_->rollback_to, path_);
+  Query(impl_->write_point, path_, "writing a 3-D point")
+      .Bind(point.position_in_enu.x())
+      .Bind(point.position_in_enu.y())
+      .Bind(point.position_in_enu.z())
+      .Bind(point.error_px)
+      .Bind(static_cast<int64_t>(observations.size()))
+      .Run();
+  const int64_t point_id = sqlite3_last_insert_rowid(sqlite3_db_handle(impl_->write_point));
+  for (const DbObservation& o : observations) {
+    Query(impl_->write_observation, path_,
+          fmt::format("writing an observation of image {} feature {}", o.image_id,
+                      o.feature_index))
+        .Bind(o.image_id)
+        .Bind(o.feature_index)
+        .Bind(point_id)
+        .Run();
+  }
+  savepoint.Release();
+  return point_id;
+}
+
+std::vector<DbFramePoint> Database::ReadFramePoints(image_t image_id) const {
+  Query query(impl_->read_frame_points, path_,
+              fmt::format("reading the 3-D points of image {}", image_id));
+  query.Bind(image_id);
+  std::vector<DbFramePoint> points;
+  while (query.Step()) {
+    DbFramePoint p;
+    p.feature_index = static_cast<int>(query.Int());
+    p.point_id = query.Int();
+    const double e = query.Double(), n = query.Double(), u = query.Double();
+    p.position_in_enu = Eigen::Vector3d(e, n, u);
+    points.push_back(p);
+  }
+  return points;
+}
+
+int64_t Database::NumPoints() const {
+  Query query(impl_->count_points, path_, "counting 3-D points");
+  return query.Step() ? query.Int() : 0;
+}
+
+int64_t Database::NumObservations() const {
+  Query query(impl_->count_observations, path_, "counting observations");
+  return query.Step() ? query.Int() : 0;
+}
+
+void Database::ClearPoints() {
+  Query(impl_->clear_points, path_, "clearing 3-D points").Run();
 }
 
 void Database::DeleteFrame(image_t image_id) {

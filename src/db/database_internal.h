@@ -172,6 +172,12 @@ class Database::Impl {
   sqlite3_stmt* read_global_descriptors = nullptr;
   sqlite3_stmt* count_global_descriptors = nullptr;
   sqlite3_stmt* clear_global_descriptors = nullptr;
+  sqlite3_stmt* write_point = nullptr;
+  sqlite3_stmt* write_observation = nullptr;
+  sqlite3_stmt* read_frame_points = nullptr;
+  sqlite3_stmt* count_points = nullptr;
+  sqlite3_stmt* count_observations = nullptr;
+  sqlite3_stmt* clear_points = nullptr;
 
  private:
   // Runs a one-off query returning one integer (0 if no row).

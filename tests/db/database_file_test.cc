@@ -264,6 +264,7 @@ TEST_F(DatabaseFileTest, MigratingAVersionOneDatabaseKeepsItsFramesAndAddsRetrie
     EXPECT_EQ(db.NumGlobalDescriptors(), 0);
     db.WriteGlobalDescriptor(7, {1.0f, 0.0f});
     db.WriteRetrievalModel({1, 2}, 2, 2);
+    EXPECT_EQ(db.NumPoints(), 0);  // schema 3: no structure yet
   }
   RawConnection raw(path);
   EXPECT_EQ(raw.QueryInt("PRAGMA user_version"), Database::LatestSchemaVersion());

@@ -393,3 +393,70 @@ TEST_F(DatabaseFileTest, TransactionCommitsToTheFile) {
 
 }  // namespace
 }  // namespace epiloc
+
+namespace epiloc {
+namespace {
+
+TEST(Database, PointsRoundTripByFrameAndFeature) {
+  Database db(":memory:");
+  const Sample sample = WriteSample(&db, 3);
+  const image_t a = sample.frames[0].frame.image_id;  // 7 features
+  const image_t c = sample.frames[2].frame.image_id;  // 300 features
+  EXPECT_EQ(db.NumPoints(), 0);
+  EXPECT_TRUE(db.ReadFramePoints(a).empty());
+  DbPoint3d p1;
+  p1.position_in_enu = {1.25, -2.5, 0.125};
+  p1.error_px = 0.3;
+  DbPoint3d p2;
+  p2.position_in_enu = {10.0, 20.0, -1.0};
+  p2.error_px = 0.0;
+  int64_t id1, id2;
+  {
+    Database::Transaction transaction(db);
+    id1 = db.WritePoint(p1, {{a, 5}, {c, 17}});
+    id2 = db.WritePoint(p2, {{a, 2}, {c, 299}});
+    transaction.Commit();
+  }
+  EXPECT_NE(id1, id2);
+  EXPECT_EQ(db.NumPoints(), 2);
+  EXPECT_EQ(db.NumObservations(), 4);
+  const std::vector<DbFramePoint> seen = db.ReadFramePoints(a);
+  ASSERT_EQ(seen.size(), 2u);
+  EXPECT_EQ(seen[0].feature_index, 2);  // by ascending feature index
+  EXPECT_EQ(seen[0].point_id, id2);
+  EXPECT_EQ(seen[0].position_in_enu, p2.position_in_enu);
+  EXPECT_EQ(seen[1].feature_index, 5);
+  EXPECT_EQ(seen[1].point_id, id1);
+  EXPECT_EQ(seen[1].position_in_enu, p1.position_in_enu);
+  EXPECT_EQ(db.ReadFramePoints(c).size(), 2u);
+
+  // Deleting a frame takes its observations; clearing takes everything.
+  db.DeleteFrame(a);
+  EXPECT_EQ(db.NumObservations(), 2);
+  db.ClearPoints();
+  EXPECT_EQ(db.NumPoints(), 0);
+  EXPECT_EQ(db.NumObservations(), 0);
+  EXPECT_TRUE(db.ReadFramePoints(c).empty());
+}
+
+TEST(Database, InvalidPointsAreRejectedWithoutTrace) {
+  Database db(":memory:");
+  const Sample sample = WriteSample(&db, 4);
+  const image_t a = sample.frames[0].frame.image_id;
+  const image_t c = sample.frames[2].frame.image_id;
+  DbPoint3d p;
+  p.position_in_enu = {1, 2, 3};
+  db.WritePoint(p, {{a, 0}, {c, 0}});
+  // A feature that already sees a point, one observation only, an unknown frame, a NaN.
+  ExpectError([&] { db.WritePoint(p, {{a, 1}, {c, 0}}); }, {"observation of image"});
+  ExpectError([&] { db.WritePoint(p, {{a, 1}}); }, {"at least 2 observations"});
+  ExpectError([&] { db.WritePoint(p, {{a, 1}, {999, 0}}); }, {"observation of image 999"});
+  DbPoint3d bad = p;
+  bad.position_in_enu.x() = NAN;
+  ExpectError([&] { db.WritePoint(bad, {{a, 1}, {c, 1}}); }, {"invalid 3-D point"});
+  EXPECT_EQ(db.NumPoints(), 1);
+  EXPECT_EQ(db.NumObservations(), 2);
+}
+
+}  // namespace
+}  // namespace epiloc

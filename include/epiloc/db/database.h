@@ -55,6 +55,27 @@ struct DbFrame {
   int num_features = 0;
 };
 
+// A triangulated 3-D point of the survey (schema version 3).
+struct DbPoint3d {
+  int64_t point_id = -1;                                        // set by WritePoint
+  Eigen::Vector3d position_in_enu = Eigen::Vector3d::Zero();  // database ENU frame, metres
+  double error_px = 0.0;          // RMS reprojection error over its observations, pixels
+  int num_observations = 0;       // >= 2
+};
+
+// One observation of a point by a feature of a database frame.
+struct DbObservation {
+  image_t image_id = kInvalidImage;
+  int feature_index = -1;  // row of the frame's keypoints / descriptors
+};
+
+// The points a database frame sees, by feature (ReadFramePoints).
+struct DbFramePoint {
+  int feature_index = -1;
+  int64_t point_id = -1;
+  Eigen::Vector3d position_in_enu = Eigen::Vector3d::Zero();
+};
+
 // One connection; use a Database from one thread at a time (its prepared
 // statements are shared).
 class Database {
@@ -129,6 +150,16 @@ class Database {
   // Removal, for undoing a failed build: a frame (with its features); a drive (with its frames,
   // and its camera if no other drive uses it); the route and ENU origin (only sensible when no
   // drive remains).
+  // Local 3-D structure (schema version 3). WritePoint stores a point with its observations
+  // (at least 2, distinct frames, features seen by no other point) and returns its id; wrap many
+  // in a Transaction. ReadFramePoints: the points frame `image_id` sees, by ascending
+  // feature_index. ClearPoints removes every point and observation.
+  int64_t WritePoint(const DbPoint3d& point, const std::vector<DbObservation>& observations);
+  std::vector<DbFramePoint> ReadFramePoints(image_t image_id) const;
+  int64_t NumPoints() const;
+  int64_t NumObservations() const;
+  void ClearPoints();
+
   void DeleteFrame(image_t image_id);
   void DeleteDrive(drive_t drive_id);
   void ClearRouteAndOrigin();
