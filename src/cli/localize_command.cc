@@ -2,6 +2,7 @@
 
 #include "cli_common.h"
 #include "epiloc/cli/commands.h"
+#include "epiloc/core/error.h"
 #include "epiloc/core/progress.h"
 #include "epiloc/eval/export.h"
 #include "epiloc/localize/localizer.h"
@@ -73,7 +74,17 @@ int RunLocalize(int argc, char** argv) {
   app.add_option("--dtw-max-step", options.dtw.max_step,
                  "Most database frames a query frame may advance")
       ->capture_default_str();
+  std::string refine = "pnp";
+  app.add_option("--refine", refine,
+                 "pnp: 6-DoF pose against the survey's 3-D points (pnp rows; needs a triangulated "
+                 "database) | none")
+      ->capture_default_str();
+  app.add_option("--refine-max-disagreement-m", options.refine.max_along_disagreement_m,
+                 "PnP poses farther along the route from the epipolar estimate are rejected")
+      ->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  if (refine != "pnp" && refine != "none") epiloc::Throw("--refine '{}': expected pnp or none", refine);
+  options.refine.enabled = refine == "pnp";
   options.mode = ParseMode(mode);
   options.use_gps = !no_gps;
   options.pairs.window_matching = matcher == "window";
@@ -95,6 +106,12 @@ int RunLocalize(int argc, char** argv) {
       "(%.1f frames/s)\n",
       out_path.c_str(), run.num_frames, run.num_localized_online, run.num_reinitialisations,
       static_cast<long long>(run.num_pairs), run.seconds, run.frames_per_second);
+  if (run.refined) {
+    std::printf("%s: 6-DoF refinement: %d frames refined, %d thin structure, %d rejected "
+                "(epipolar estimate kept, flagged)\n",
+                out_path.c_str(), run.num_refined_ok, run.num_refine_thin,
+                run.num_refine_rejected);
+  }
   return kExitOk;
 }
 

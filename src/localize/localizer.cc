@@ -48,6 +48,7 @@ struct FrameState {
   int online_j = -1;
   double online_s = 0.0;
   bool online_ok = false;
+  std::optional<PoseRefinement> refined;  // with the refinement, for online-localized frames
 };
 
 // Database frames whose s lies in [from, to] (frames sorted by s).
@@ -186,6 +187,7 @@ void LocalizeOptions::Check() const {
   pairs.Check();
   dtw.Check();
   vfit.Check();
+  refine.Check();
 }
 
 LocalizeRun Localize(const std::string& db_path,
@@ -237,6 +239,13 @@ LocalizeRun Localize(const std::string& db_path,
         0.75 * SmallestKeypointSizePx(options.sift, query_camera.width, query_camera.height) /
         query_camera.fx;
   }
+  const bool refine = options.refine.enabled && db.NumPoints() > 0;
+  if (options.refine.enabled && !refine) {
+    spdlog::warn("{}: no triangulated 3-D points (run epiloc triangulate); no 6-DoF refinement",
+                 db_path);
+  }
+  pair_options.with_points = refine;
+  run.refined = refine;
   PairEvaluator evaluator(db, db_frames, pair_options);
 
   // Whole-route image retrieval places the drive without GPS and recovers a lost track.
@@ -408,6 +417,10 @@ LocalizeRun Localize(const std::string& db_path,
       diag.online_fit = fit;
       state.online_s = s;
       state.online_ok = true;
+      if (refine) {
+        state.refined = RefinePose(query_camera, query.features.keypoints, state.pairs, s, route,
+                                   options.refine);
+      }
       if (have_estimate && t > t_est) {
         const double v = (s - s_est) / (t - t_est);
         velocity = tracking ? 0.5 * velocity + 0.5 * v : 0.0;
@@ -422,6 +435,11 @@ LocalizeRun Localize(const std::string& db_path,
       if (online) online->Push(row);
       if (++misses >= options.lost_after_frames) tracking = false;
     }
+    // The point matches served the refinement; dropping them keeps memory flat in drive length.
+    for (PairResult& p : state.pairs) {
+      p.point_matches.clear();
+      p.point_matches.shrink_to_fit();
+    }
     diag.pairs = state.pairs;
     diag.window_extensions = diag_extensions;
     diag.online_db_index = state.online_j;
@@ -431,10 +449,11 @@ LocalizeRun Localize(const std::string& db_path,
   }
 
   // Result rows.
-  run.results.extra_columns = {"fit_residual_m", "inliers"};
+  run.results.extra_columns = {"fit_residual_m", "inliers", "refine", "cross_track_m",
+                               "heading_deg", "reprojection_rmse_px"};
   auto add_row = [&](int i, const std::string& method, ResultStatus status, std::optional<double> s,
                      int db_index, std::optional<Geodetic> position, double residual_m,
-                     int inliers) {
+                     int inliers) -> ResultRow& {
     ResultRow r;
     r.frame = drive.frames[i].frame;
     r.timestamp_s = drive.frames[i].timestamp_s;
@@ -450,8 +469,9 @@ LocalizeRun Localize(const std::string& db_path,
     }
     if (db_index >= 0) r.db_frame = db_frames[db_index].frame;
     r.extra = {std::isfinite(residual_m) ? FormatFixed(residual_m, 4) : "",
-               inliers >= 0 ? std::to_string(inliers) : ""};
+               inliers >= 0 ? std::to_string(inliers) : "", "", "", "", ""};
     run.results.rows.push_back(std::move(r));
+    return run.results.rows.back();
   };
   auto inliers_at = [&](int i, int j) {
     for (const PairResult& p : states[i].pairs) {
@@ -530,6 +550,42 @@ LocalizeRun Localize(const std::string& db_path,
       } else {
         add_row(i, "online", lost_status(i), std::nullopt, -1, std::nullopt, NAN, -1);
       }
+    }
+  }
+
+  if (refine) {
+    // pnp: the refined 6-DoF pose; where the structure is too thin or the pose disagrees with the
+    // sequence, the online estimate, flagged in the `refine` column.
+    for (int i = 0; i < num_frames; ++i) {
+      const FrameState& st = states[i];
+      if (!st.online_ok || !st.refined) {
+        add_row(i, "pnp", lost_status(i), std::nullopt, -1, std::nullopt, NAN, -1);
+        continue;
+      }
+      const PoseRefinement& ref = *st.refined;
+      const VFitResult& fit = run.diagnostics[i].online_fit;
+      if (ref.status != RefineStatus::kOk) {
+        ResultRow& r = add_row(i, "pnp", ResultStatus::kOk, st.online_s, st.online_j, std::nullopt,
+                               fit.valid ? fit.rms_residual_m : NAN, ref.num_inliers);
+        r.extra[2] = RefineStatusName(ref.status);
+        ++(ref.status == RefineStatus::kThin ? run.num_refine_thin : run.num_refine_rejected);
+        continue;
+      }
+      const Eigen::Vector3d& centre = ref.enu_from_cam.translation;
+      const Geodetic position = enu.ToGeodetic(centre);
+      ResultRow& r = add_row(i, "pnp", ResultStatus::kOk, ref.projection.s_m, st.online_j, position,
+                             NAN, ref.num_inliers);
+      const Eigen::Matrix3d rotation = ref.enu_from_cam.rotation.toRotationMatrix();
+      r.enu_from_cam =
+          Eigen::Quaterniond(enu.EnuFromLocalEnu(position).transpose() * rotation).normalized();
+      const Eigen::Vector3d axis = rotation.col(2);
+      double heading = std::atan2(axis.x(), axis.y()) * 180.0 / M_PI;
+      if (heading < 0) heading += 360.0;
+      r.extra[2] = "ok";
+      r.extra[3] = FormatFixed(ref.projection.cross_track_m, 3);
+      r.extra[4] = FormatFixed(heading, 3);
+      r.extra[5] = FormatFixed(ref.rmse_px, 3);
+      ++run.num_refined_ok;
     }
   }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <numeric>
 #include <thread>
 
 #include "epiloc/core/error.h"
@@ -44,6 +45,9 @@ std::shared_ptr<const PairEvaluator::CachedFrame> PairEvaluator::Load(int db_ind
   const image_t image_id = frames_[db_index].image_id;
   frame->keypoints = db_.ReadKeypoints(image_id);
   frame->descriptors = db_.ReadDescriptors(image_id);
+  // Stored row of each kept row (the filter below moves rows up).
+  std::vector<int> stored_row(frame->keypoints.rows());
+  std::iota(stored_row.begin(), stored_row.end(), 0);
   if (options_.min_db_feature_angle_rad > 0) {
     // Drop the features too fine for the query, keeping the strongest-first order.
     const double min_size_px = options_.min_db_feature_angle_rad * DbCamera(db_index).fx;
@@ -54,6 +58,7 @@ std::shared_ptr<const PairEvaluator::CachedFrame> PairEvaluator::Load(int db_ind
         frame->keypoints.row(kept) = frame->keypoints.row(r);
         frame->descriptors.row(kept) = frame->descriptors.row(r);
       }
+      stored_row[kept] = r;
       ++kept;
     }
     frame->keypoints.conservativeResize(kept, Eigen::NoChange);
@@ -65,6 +70,19 @@ std::shared_ptr<const PairEvaluator::CachedFrame> PairEvaluator::Load(int db_ind
   // Rows are strongest first: the prefix is the best `keep` features.
   frame->keypoints.conservativeResize(keep, Eigen::NoChange);
   frame->descriptors.conservativeResize(keep, Eigen::NoChange);
+  if (options_.with_points) {
+    std::unordered_map<int, const DbFramePoint*> by_feature;
+    const std::vector<DbFramePoint> points = db_.ReadFramePoints(image_id);
+    for (const DbFramePoint& p : points) by_feature[p.feature_index] = &p;
+    frame->point_id.assign(keep, -1);
+    frame->point_in_enu.assign(keep, Eigen::Vector3d::Zero());
+    for (int r = 0; r < keep; ++r) {
+      const auto found = by_feature.find(stored_row[r]);
+      if (found == by_feature.end()) continue;
+      frame->point_id[r] = found->second->point_id;
+      frame->point_in_enu[r] = found->second->position_in_enu;
+    }
+  }
   lru_.push_front(db_index);
   cache_[db_index] = {frame, lru_.begin()};
   while (static_cast<int>(cache_.size()) > options_.cache_frames) {
@@ -106,6 +124,13 @@ PairResult PairEvaluator::EpipoleOfMatches(const Camera& query_camera,
   result.num_matches = epipole.num_matches;
   result.num_inliers = epipole.num_inliers;
   result.failure = epipole.failure;
+  if (options_.with_points) {
+    for (const auto& [query_row, db_row] : rows) {
+      if (db_frame.point_id[db_row] < 0) continue;
+      result.point_matches.push_back(
+          {query_row, db_frame.point_id[db_row], db_frame.point_in_enu[db_row]});
+    }
+  }
   return result;
 }
 

@@ -37,7 +37,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
-#include "epiloc/anchor/absolute_pose.h"
+#include "epiloc/geometry/absolute_pose.h"
 #include "epiloc/anchor/image_matching.h"
 #include "epiloc/anchor/photometric.h"
 #include "epiloc/anchor/pose_prior.h"

@@ -34,11 +34,21 @@ struct PairOptions {
   // the window, WindowMatcher) instead of once per pair: ~4x faster.
   bool window_matching = true;
   WindowMatcherOptions window;
+  // Also report, per pair, the matches whose database feature sees a triangulated 3-D point
+  // (PairResult::point_matches, for the 6-DoF refinement); needs a database with structure.
+  bool with_points = false;
   // Retry a pair with the 8-point fundamental matrix when the essential matrix fails (USAC
   // occasionally locks onto a wrong model for near-identical viewpoints).
   bool fundamental_fallback = true;
 
   void Check() const;
+};
+
+// A query feature matched to a database feature that sees a triangulated point.
+struct PointMatch {
+  int query_row = -1;
+  int64_t point_id = -1;
+  Eigen::Vector3d point_in_enu = Eigen::Vector3d::Zero();
 };
 
 // What one query/database pair gave.
@@ -50,6 +60,7 @@ struct PairResult {
   int num_matches = 0;
   int num_inliers = 0;
   std::string failure;
+  std::vector<PointMatch> point_matches;  // with PairOptions::with_points (all ratio-test matches)
 };
 
 class PairEvaluator {
@@ -80,6 +91,9 @@ class PairEvaluator {
   struct CachedFrame {
     FeatureKeypoints keypoints;
     FeatureDescriptors descriptors;
+    // With options.with_points: per kept row, the id (-1: none) and position of its 3-D point.
+    std::vector<int64_t> point_id;
+    std::vector<Eigen::Vector3d> point_in_enu;
   };
   std::shared_ptr<const CachedFrame> Load(int db_index) const;
   PairResult EvaluateOne(const Camera& query_camera,

@@ -1,4 +1,4 @@
-#include "epiloc/anchor/absolute_pose.h"
+#include "epiloc/geometry/absolute_pose.h"
 
 #include <cmath>
 
