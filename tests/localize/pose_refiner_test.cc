@@ -1,0 +1,151 @@
+#include "epiloc/localize/pose_refiner.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "epiloc/geo/rigid3.h"
+#include "test_util.h"
+
+namespace epiloc {
+namespace {
+
+Camera KittiLikeCamera() {
+  Camera c;
+  c.width = 1242;
+  c.height = 375;
+  c.fx = c.fy = 721.5377;
+  c.cx = 609.5593;
+  c.cy = 172.854;
+  return c;
+}
+
+// A straight route along north, a camera on it looking north (x east, y down, z north).
+struct Scene {
+  Route route{{{0, 0, 0}, {0, 100, 0}}};
+  Camera camera = KittiLikeCamera();
+  Rigid3d enu_from_cam;
+  FeatureKeypoints keypoints;
+  std::vector<PairResult> pairs;
+};
+
+// `n` points on facades 6-10 m left and right of the road, seen by the camera at (lateral, s, 1.6)
+// with a small yaw; their exact projections become query keypoints; the matches are spread
+// over 3 database pairs, each point seen by 1-2 of them (as in the localizer).
+Scene MakeScene(int n, double s_true, double lateral, uint32_t seed) {
+  Scene scene;
+  const double yaw = 0.02;  // rad
+  Eigen::Matrix3d r;
+  r.col(0) = Eigen::Vector3d(std::cos(yaw), -std::sin(yaw), 0);  // camera x: east (right)
+  r.col(1) = Eigen::Vector3d(0, 0, -1);                           // y: down
+  r.col(2) = Eigen::Vector3d(std::sin(yaw), std::cos(yaw), 0);    // z: north (forward)
+  scene.enu_from_cam = Rigid3d::FromMatrix(r, Eigen::Vector3d(lateral, s_true, 1.6));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> along(s_true + 5, s_true + 40), height(0.0, 6.0),
+      side(6.0, 10.0);
+  const Rigid3d cam_from_enu = scene.enu_from_cam.Inverse();
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector3d> points;
+  while (static_cast<int>(points.size()) < n) {
+    const double x = (points.size() % 2 ? 1 : -1) * side(rng);
+    const Eigen::Vector3d p(x, along(rng), height(rng));
+    const Eigen::Vector3d c = cam_from_enu * p;
+    if (c.z() <= 1) continue;
+    const Eigen::Vector2d uv = scene.camera.Project(c);
+    if (uv.x() < 0 || uv.y() < 0 || uv.x() > scene.camera.width - 1 ||
+        uv.y() > scene.camera.height - 1) {
+      continue;
+    }
+    pixels.push_back(uv);
+    points.push_back(p);
+  }
+  scene.keypoints.resize(n, 4);
+  scene.pairs.resize(3);
+  for (int i = 0; i < n; ++i) {
+    scene.keypoints.row(i) << static_cast<float>(pixels[i].x()), static_cast<float>(pixels[i].y()),
+        3.0f, 0.0f;
+    scene.pairs[i % 3].point_matches.push_back({i, 1000 + i, points[i]});
+    if (i % 2 == 0) scene.pairs[(i + 1) % 3].point_matches.push_back({i, 1000 + i, points[i]});
+  }
+  return scene;
+}
+
+TEST(PoseRefiner, RecoversTheExactPoseFromItsCorrespondences) {
+  // Keypoints are float (as stored), so exact means: within what float pixels allow.
+  const Scene scene = MakeScene(200, 30.0, 1.2, 1);
+  const PoseRefinement r =
+      RefinePose(scene.camera, scene.keypoints, scene.pairs, 30.3, scene.route, RefineOptions());
+  ASSERT_EQ(r.status, RefineStatus::kOk) << r.message;
+  EXPECT_EQ(r.num_correspondences, 200);
+  EXPECT_EQ(r.num_inliers, 200);
+  EXPECT_LT((r.enu_from_cam.translation - scene.enu_from_cam.translation).norm(), 1e-3);
+  EXPECT_LT(RotationDifferenceDeg(r.enu_from_cam.rotation, scene.enu_from_cam.rotation), 1e-3);
+  EXPECT_NEAR(r.projection.s_m, 30.0, 1e-3);
+  EXPECT_NEAR(r.projection.cross_track_m, -1.2, 1e-3);  // east of a northbound route = right
+  EXPECT_LT(r.rmse_px, 0.01);
+}
+
+TEST(PoseRefiner, OutliersAndConflictingVotesDoNotMoveThePose) {
+  Scene scene = MakeScene(200, 50.0, 0.0, 2);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> anywhere(-20, 20);
+  // 30 % of the features also matched, in another pair, a wrong point; where the wrong point
+  // gets more votes the correspondence itself is wrong (an outlier for RANSAC).
+  for (int i = 0; i < 60; ++i) {
+    const Eigen::Vector3d wrong(anywhere(rng), 50 + 30 + anywhere(rng), 2 + 0.1 * anywhere(rng));
+    for (int k = 0; k < 2; ++k) scene.pairs[k].point_matches.push_back({i, 5000 + i, wrong});
+  }
+  const PoseRefinement r =
+      RefinePose(scene.camera, scene.keypoints, scene.pairs, 50.0, scene.route, RefineOptions());
+  ASSERT_EQ(r.status, RefineStatus::kOk) << r.message;
+  EXPECT_EQ(r.num_correspondences, 200);
+  EXPECT_LE(r.num_inliers, 200 - 30);  // at least the 60 - 30 with more wrong votes are out
+  EXPECT_LT((r.enu_from_cam.translation - scene.enu_from_cam.translation).norm(), 1e-3);
+}
+
+TEST(PoseRefiner, ThinStructureFallsBack) {
+  const Scene scene = MakeScene(10, 30.0, 0.0, 3);
+  const PoseRefinement r =
+      RefinePose(scene.camera, scene.keypoints, scene.pairs, 30.0, scene.route, RefineOptions());
+  EXPECT_EQ(r.status, RefineStatus::kThin);
+  EXPECT_NE(r.message.find("10 2D-3D correspondences"), std::string::npos) << r.message;
+  // Enough correspondences, but none consistent: PnP finds no pose.
+  Scene noise = MakeScene(60, 30.0, 0.0, 4);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0, 1200), v(0, 370);
+  for (int i = 0; i < noise.keypoints.rows(); ++i) noise.keypoints.row(i) << u(rng), v(rng), 3, 0;
+  const PoseRefinement n =
+      RefinePose(noise.camera, noise.keypoints, noise.pairs, 30.0, noise.route, RefineOptions());
+  EXPECT_EQ(n.status, RefineStatus::kThin) << n.message;
+}
+
+TEST(PoseRefiner, APoseThatDisagreesWithTheSequenceIsRejected) {
+  const Scene scene = MakeScene(200, 30.0, 0.0, 6);
+  RefineOptions options;
+  options.max_along_disagreement_m = 1.5;
+  const PoseRefinement far =
+      RefinePose(scene.camera, scene.keypoints, scene.pairs, 32.0, scene.route, options);
+  EXPECT_EQ(far.status, RefineStatus::kRejected);
+  EXPECT_NE(far.message.find("along the route"), std::string::npos) << far.message;
+  const PoseRefinement near =
+      RefinePose(scene.camera, scene.keypoints, scene.pairs, 31.4, scene.route, options);
+  EXPECT_EQ(near.status, RefineStatus::kOk) << near.message;
+  options.max_cross_track_m = 0.5;
+  const Scene off = MakeScene(200, 30.0, 2.0, 7);
+  const PoseRefinement side =
+      RefinePose(off.camera, off.keypoints, off.pairs, 30.0, off.route, options);
+  EXPECT_EQ(side.status, RefineStatus::kRejected);
+  EXPECT_NE(side.message.find("off the route"), std::string::npos) << side.message;
+}
+
+TEST(PoseRefiner, OptionsAreChecked) {
+  RefineOptions options;
+  options.min_correspondences = 3;
+  ExpectError([&] { options.Check(); }, {"min_correspondences"});
+  options = RefineOptions();
+  options.max_along_disagreement_m = 0;
+  ExpectError([&] { options.Check(); }, {"max_along_disagreement_m"});
+}
+
+}  // namespace
+}  // namespace epiloc
