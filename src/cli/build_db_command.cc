@@ -32,7 +32,12 @@ int RunBuildDb(int argc, char** argv) {
   app.add_option("--contrast-threshold", options.sift.contrast_threshold,
                  "SIFT contrast threshold")
       ->capture_default_str();
+  bool no_triangulate = false;
+  app.add_flag("--no-triangulate", no_triangulate,
+               "Skip triangulating the local 3-D structure afterwards (run `epiloc triangulate` "
+               "later for its options)");
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  options.triangulate = !no_triangulate;
 
   Progress progress("build-db", 0);
   const BuildDbSummary summary = BuildDatabase(drive_dir, db_path, options, progress.Callback());
@@ -45,6 +50,7 @@ int RunBuildDb(int argc, char** argv) {
       static_cast<long long>(summary.frames_already_present),
       static_cast<long long>(summary.frames_without_position), summary.seconds,
       summary.seconds > 0 ? summary.frames_added / summary.seconds : 0.0);
+  if (summary.triangulated) PrintTriangulateSummary(summary.triangulation);
   return kExitOk;
 }
 

@@ -6,6 +6,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "epiloc/survey/triangulate.h"
+
 namespace epiloc {
 
 struct CommonFlags {
@@ -19,5 +21,8 @@ void AddCommonFlags(CLI::App& app, CommonFlags& flags);
 // Parses argv; on success applies the common flags (logging, progress style) and returns nullopt;
 // otherwise prints help (exit 0) or one error line plus a hint (exit 2) and returns the code.
 std::optional<int> Parse(CLI::App& app, CommonFlags& flags, int argc, char** argv);
+
+// One line of triangulation figures on stdout (triangulate and build-db).
+void PrintTriangulateSummary(const TriangulateSummary& summary);
 
 }  // namespace epiloc

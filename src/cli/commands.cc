@@ -29,6 +29,8 @@ const std::vector<Command>& Commands() {
        RunSynth},
       {"import-kitti", "Convert a KITTI raw synced drive into a drive directory", RunImportKitti},
       {"build-db", "Add a survey drive to a route database (SIFT features, positions)", RunBuildDb},
+      {"triangulate", "Triangulate a route database's survey features into 3-D points",
+       RunTriangulate},
       {"info", "Summarise a route database", RunInfo},
       {"build-map", "Merge a drive's LiDAR scans into a (coloured) point-cloud map", RunBuildMap},
       {"render", "Render a point-cloud map at a frame's pose", RunRender},

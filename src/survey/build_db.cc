@@ -146,6 +146,7 @@ void BuildDbOptions::Check() const {
   EPILOC_CHECK(!positions.empty(), "build-db: --positions must not be empty");
   EPILOC_CHECK(num_threads >= 0, "build-db: --threads must be >= 0, got {}", num_threads);
   sift.Check();
+  if (triangulate) triangulation.Check();
 }
 
 BuildDbSummary BuildDatabase(const std::string& drive_dir,
@@ -335,6 +336,12 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
   if (options.retrieval_index && (summary.frames_added > 0 || !HasCurrentRetrievalIndex(db))) {
     const RetrievalIndexSummary index = BuildRetrievalIndex(db, VocabularyOptions());
     if (!index.built) spdlog::warn("{}: no retrieval index: {}", db_path, index.reason);
+  }
+  if (options.triangulate && (summary.frames_added > 0 || db.NumPoints() == 0)) {
+    TriangulateOptions triangulation = options.triangulation;
+    if (triangulation.num_threads == 0) triangulation.num_threads = num_threads;
+    summary.triangulation = TriangulateDatabase(db, triangulation);
+    summary.triangulated = true;
   }
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -52,6 +52,10 @@ DatabaseInfo SummarizeDatabase(const std::string& db_path) {
     info.min_features_per_frame = min_features;
     info.mean_features_per_frame = static_cast<double>(info.num_features) / info.num_frames;
   }
+  if (info.schema_version >= 3) {
+    info.num_points = db.NumPoints();
+    info.num_observations = db.NumObservations();
+  }
   std::error_code error;
   info.file_bytes = static_cast<int64_t>(fs::file_size(db_path, error));
   const auto wal = fs::file_size(db_path + "-wal", error);
@@ -71,6 +75,12 @@ std::string FormatDatabaseInfo(const DatabaseInfo& info) {
   text += fmt::format("frames          {}\n", info.num_frames);
   text += fmt::format("features/frame  min {} mean {:.0f} max {}\n", info.min_features_per_frame,
                       info.mean_features_per_frame, info.max_features_per_frame);
+  text += fmt::format("3-D points      {} ({} observations, {:.2f} per point){}\n",
+                      info.num_points, info.num_observations,
+                      info.num_points > 0
+                          ? static_cast<double>(info.num_observations) / info.num_points
+                          : 0.0,
+                      info.schema_version < 3 ? " (schema before 3: run epiloc triangulate)" : "");
   text += fmt::format("size            {:.1f} MB ({:.0f} kB per frame)\n", info.file_bytes / 1e6,
                       info.num_frames > 0 ? info.file_bytes / 1e3 / info.num_frames : 0.0);
   text += fmt::format("drives          {}\n", info.drives.size());

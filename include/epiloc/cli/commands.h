@@ -23,6 +23,7 @@ std::string SuggestCommand(const std::string& typed);
 int RunSynth(int argc, char** argv);
 int RunImportKitti(int argc, char** argv);
 int RunBuildDb(int argc, char** argv);
+int RunTriangulate(int argc, char** argv);
 int RunInfo(int argc, char** argv);
 int RunLocalize(int argc, char** argv);
 int RunEvaluate(int argc, char** argv);

@@ -9,6 +9,7 @@
 #include "epiloc/core/progress.h"
 #include "epiloc/core/types.h"
 #include "epiloc/feature/sift.h"
+#include "epiloc/survey/triangulate.h"
 
 namespace epiloc {
 
@@ -23,6 +24,11 @@ struct BuildDbOptions {
   // Afterwards (re)build the database's whole-image retrieval index (BuildRetrievalIndex with
   // default VocabularyOptions) when this run added frames or the index is missing or stale.
   bool retrieval_index = true;
+  // Afterwards (re)triangulate the database's local structure (TriangulateDatabase, replacing all
+  // points) when this run added frames or the database has no points. Its num_threads 0 means
+  // this build's thread count.
+  bool triangulate = true;
+  TriangulateOptions triangulation;
 
   void Check() const;
 };
@@ -37,6 +43,8 @@ struct BuildDbSummary {
   int64_t features_added = 0;
   double seconds = 0.0;
   double route_length_m = 0.0;
+  bool triangulated = false;          // the triangulation step ran
+  TriangulateSummary triangulation;  // its figures (seconds included in `seconds`)
 };
 
 // Adds the drive in `drive_dir` to the database at `db_path` (created if missing). Re-running adds

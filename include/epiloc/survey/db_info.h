@@ -33,6 +33,8 @@ struct DatabaseInfo {
   double mean_features_per_frame = 0.0;
   int max_features_per_frame = 0;
   double route_length_m = 0.0;
+  int64_t num_points = 0;        // triangulated 3-D points (schema version >= 3)
+  int64_t num_observations = 0;  // and their observations
   int64_t file_bytes = 0;  // database file plus its WAL
 };
 
