@@ -82,6 +82,12 @@ int RunLocalize(int argc, char** argv) {
   app.add_option("--refine-max-disagreement-m", options.refine.max_along_disagreement_m,
                  "PnP poses farther along the route from the epipolar estimate are rejected")
       ->capture_default_str();
+  app.add_option("--refine-max-error-px", options.refine.pnp.max_reprojection_px,
+                 "PnP RANSAC inlier threshold of the refinement, pixels")
+      ->capture_default_str();
+  app.add_option("--refine-min-inliers", options.refine.min_inliers,
+                 "Fewer PnP inliers: the epipolar estimate is kept (flagged thin)")
+      ->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
   if (refine != "pnp" && refine != "none") epiloc::Throw("--refine '{}': expected pnp or none", refine);
   options.refine.enabled = refine == "pnp";

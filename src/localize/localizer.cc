@@ -420,6 +420,14 @@ LocalizeRun Localize(const std::string& db_path,
       if (refine) {
         state.refined = RefinePose(query_camera, query.features.keypoints, state.pairs, s, route,
                                    options.refine);
+        if (options.refine.search_by_projection && state.refined->status == RefineStatus::kOk) {
+          std::vector<std::shared_ptr<const FrameMapPoints>> local_map;
+          for (const PairResult& p : state.pairs) local_map.push_back(evaluator.MapPoints(p.db_index));
+          const std::vector<float> root_sift =
+              ToRootSift(query.features.descriptors, query.features.size());
+          state.refined = RefineByProjection(query_camera, query.features.keypoints, root_sift,
+                                             local_map, *state.refined, s, route, options.refine);
+        }
       }
       if (have_estimate && t > t_est) {
         const double v = (s - s_est) / (t - t_est);

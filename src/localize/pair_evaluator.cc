@@ -45,6 +45,22 @@ std::shared_ptr<const PairEvaluator::CachedFrame> PairEvaluator::Load(int db_ind
   const image_t image_id = frames_[db_index].image_id;
   frame->keypoints = db_.ReadKeypoints(image_id);
   frame->descriptors = db_.ReadDescriptors(image_id);
+  std::vector<DbFramePoint> points;
+  if (options_.with_points) {
+    points = db_.ReadFramePoints(image_id);
+    auto map_points = std::make_shared<FrameMapPoints>();
+    FeatureDescriptors observed(static_cast<int>(points.size()), 128);
+    for (size_t k = 0; k < points.size(); ++k) {
+      EPILOC_CHECK(points[k].feature_index < frame->descriptors.rows(),
+                   "{}: image {} has a point observation of feature {} of {}", db_.path(),
+                   image_id, points[k].feature_index, frame->descriptors.rows());
+      observed.row(static_cast<int>(k)) = frame->descriptors.row(points[k].feature_index);
+      map_points->point_id.push_back(points[k].point_id);
+      map_points->point_in_enu.push_back(points[k].position_in_enu);
+    }
+    map_points->root_sift = ToRootSift(observed, static_cast<int>(points.size()));
+    frame->map_points = std::move(map_points);
+  }
   // Stored row of each kept row (the filter below moves rows up).
   std::vector<int> stored_row(frame->keypoints.rows());
   std::iota(stored_row.begin(), stored_row.end(), 0);
@@ -72,7 +88,6 @@ std::shared_ptr<const PairEvaluator::CachedFrame> PairEvaluator::Load(int db_ind
   frame->descriptors.conservativeResize(keep, Eigen::NoChange);
   if (options_.with_points) {
     std::unordered_map<int, const DbFramePoint*> by_feature;
-    const std::vector<DbFramePoint> points = db_.ReadFramePoints(image_id);
     for (const DbFramePoint& p : points) by_feature[p.feature_index] = &p;
     frame->point_id.assign(keep, -1);
     frame->point_in_enu.assign(keep, Eigen::Vector3d::Zero());
@@ -90,6 +105,11 @@ std::shared_ptr<const PairEvaluator::CachedFrame> PairEvaluator::Load(int db_ind
     lru_.pop_back();
   }
   return frame;
+}
+
+std::shared_ptr<const FrameMapPoints> PairEvaluator::MapPoints(int db_index) const {
+  EPILOC_CHECK(options_.with_points, "PairEvaluator::MapPoints: needs PairOptions::with_points");
+  return Load(db_index)->map_points;
 }
 
 PairResult PairEvaluator::EpipoleOfMatches(const Camera& query_camera,

@@ -1,5 +1,6 @@
 #include "epiloc/localize/pose_refiner.h"
 
+#include <algorithm>
 #include <cmath>
 #include <unordered_map>
 
@@ -24,6 +25,11 @@ void RefineOptions::Check() const {
                "refine: max_along_disagreement_m must be > 0");
   EPILOC_CHECK(std::isfinite(max_cross_track_m) && max_cross_track_m > 0,
                "refine: max_cross_track_m must be > 0");
+  EPILOC_CHECK(std::isfinite(search_radius_px) && search_radius_px > 0 &&
+                   std::isfinite(max_descriptor_distance) && max_descriptor_distance > 0 &&
+                   search_ratio > 0 && search_ratio <= 1,
+               "refine: invalid search by projection (radius {} px, distance {}, ratio {})",
+               search_radius_px, max_descriptor_distance, search_ratio);
   pnp.Check();
 }
 
@@ -39,49 +45,17 @@ const char* RefineStatusName(RefineStatus status) {
   return "?";
 }
 
-PoseRefinement RefinePose(const Camera& camera,
-                          const FeatureKeypoints& keypoints,
-                          const std::vector<PairResult>& pairs,
-                          double s_epipolar_m,
-                          const Route& route,
-                          const RefineOptions& options) {
+namespace {
+
+// PnP on the correspondences (world points shifted to their centroid) and the checks against the
+// sequence (see the header).
+PoseRefinement SolveAndCheck(const Camera& camera,
+                             const std::vector<Eigen::Vector2d>& pixels,
+                             std::vector<Eigen::Vector3d> points,
+                             double s_epipolar_m,
+                             const Route& route,
+                             const RefineOptions& options) {
   PoseRefinement out;
-  // Votes per query row for the points its matches see.
-  struct Vote {
-    int64_t point_id;
-    Eigen::Vector3d point;
-    int count;
-  };
-  std::unordered_map<int, std::vector<Vote>> votes;
-  std::vector<int> order;  // query rows in first-seen order (deterministic output)
-  for (const PairResult& pair : pairs) {
-    for (const PointMatch& m : pair.point_matches) {
-      auto [it, inserted] = votes.try_emplace(m.query_row);
-      if (inserted) order.push_back(m.query_row);
-      bool found = false;
-      for (Vote& v : it->second) {
-        if (v.point_id == m.point_id) {
-          ++v.count;
-          found = true;
-          break;
-        }
-      }
-      if (!found) it->second.push_back({m.point_id, m.point_in_enu, 1});
-    }
-  }
-  std::vector<Eigen::Vector2d> pixels;
-  std::vector<Eigen::Vector3d> points;
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  for (const int row : order) {
-    const std::vector<Vote>& candidates = votes.at(row);
-    const Vote* best = &candidates.front();
-    for (const Vote& v : candidates) {
-      if (v.count > best->count) best = &v;
-    }
-    pixels.emplace_back(keypoints(row, 0), keypoints(row, 1));
-    points.push_back(best->point);
-    centroid += best->point;
-  }
   out.num_correspondences = static_cast<int>(points.size());
   if (out.num_correspondences < options.min_correspondences) {
     out.status = RefineStatus::kThin;
@@ -89,6 +63,8 @@ PoseRefinement RefinePose(const Camera& camera,
                               options.min_correspondences);
     return out;
   }
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& x : points) centroid += x;
   centroid /= static_cast<double>(points.size());
   for (Eigen::Vector3d& x : points) x -= centroid;
   const PnpResult pnp = EstimateAbsolutePose(pixels, points, camera, options.pnp);
@@ -119,6 +95,147 @@ PoseRefinement RefinePose(const Camera& camera,
   }
   out.status = RefineStatus::kOk;
   return out;
+}
+
+}  // namespace
+
+PoseRefinement RefinePose(const Camera& camera,
+                          const FeatureKeypoints& keypoints,
+                          const std::vector<PairResult>& pairs,
+                          double s_epipolar_m,
+                          const Route& route,
+                          const RefineOptions& options) {
+  // Votes per query row for the points its matches see.
+  struct Vote {
+    int64_t point_id;
+    Eigen::Vector3d point;
+    int count;
+  };
+  std::unordered_map<int, std::vector<Vote>> votes;
+  std::vector<int> order;  // query rows in first-seen order (deterministic output)
+  for (const PairResult& pair : pairs) {
+    for (const PointMatch& m : pair.point_matches) {
+      auto [it, inserted] = votes.try_emplace(m.query_row);
+      if (inserted) order.push_back(m.query_row);
+      bool found = false;
+      for (Vote& v : it->second) {
+        if (v.point_id == m.point_id) {
+          ++v.count;
+          found = true;
+          break;
+        }
+      }
+      if (!found) it->second.push_back({m.point_id, m.point_in_enu, 1});
+    }
+  }
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector3d> points;
+  for (const int row : order) {
+    const std::vector<Vote>& candidates = votes.at(row);
+    const Vote* best = &candidates.front();
+    for (const Vote& v : candidates) {
+      if (v.count > best->count) best = &v;
+    }
+    pixels.emplace_back(keypoints(row, 0), keypoints(row, 1));
+    points.push_back(best->point);
+  }
+  return SolveAndCheck(camera, pixels, points, s_epipolar_m, route, options);
+}
+
+PoseRefinement RefineByProjection(const Camera& camera,
+                                  const FeatureKeypoints& keypoints,
+                                  const std::vector<float>& query_root_sift,
+                                  const std::vector<std::shared_ptr<const FrameMapPoints>>& local_map,
+                                  const PoseRefinement& initial,
+                                  double s_epipolar_m,
+                                  const Route& route,
+                                  const RefineOptions& options) {
+  if (initial.status != RefineStatus::kOk) return initial;
+  const int num_query = static_cast<int>(keypoints.rows());
+  EPILOC_CHECK(query_root_sift.size() >= static_cast<size_t>(num_query) * 128,
+               "RefineByProjection: {} RootSIFT values for {} keypoints", query_root_sift.size(),
+               num_query);
+  // Query keypoints in a grid of cells the size of the search radius.
+  const double radius = options.search_radius_px;
+  const int cell = std::max(1, static_cast<int>(std::ceil(radius)));
+  const int grid_w = camera.width / cell + 1, grid_h = camera.height / cell + 1;
+  std::vector<std::vector<int>> grid(static_cast<size_t>(grid_w) * grid_h);
+  const auto cell_of = [&](double x, double y) {
+    return std::pair<int, int>(std::clamp(static_cast<int>(x / cell), 0, grid_w - 1),
+                               std::clamp(static_cast<int>(y / cell), 0, grid_h - 1));
+  };
+  for (int q = 0; q < num_query; ++q) {
+    const auto [cx, cy] = cell_of(keypoints(q, 0), keypoints(q, 1));
+    grid[static_cast<size_t>(cy) * grid_w + cx].push_back(q);
+  }
+  const auto distance = [&](int q, const float* d) {
+    const float* a = query_root_sift.data() + static_cast<size_t>(q) * 128;
+    float sum = 0.f;
+    for (int k = 0; k < 128; ++k) sum += (a[k] - d[k]) * (a[k] - d[k]);
+    return std::sqrt(sum);
+  };
+  // Per query feature, the best point claiming it.
+  struct Claim {
+    double distance = INFINITY;
+    int64_t point_id = -1;
+    Eigen::Vector3d point;
+  };
+  std::vector<Claim> claims(num_query);
+  std::unordered_map<int64_t, bool> seen;
+  const Rigid3d cam_from_enu = initial.enu_from_cam.Inverse();
+  const double r2 = radius * radius;
+  for (const auto& frame : local_map) {
+    if (!frame) continue;
+    for (int k = 0; k < frame->size(); ++k) {
+      const int64_t id = frame->point_id[k];
+      if (!seen.emplace(id, true).second) continue;  // one descriptor per point (the first)
+      const Eigen::Vector3d x = cam_from_enu * frame->point_in_enu[k];
+      if (x.z() < 0.5) continue;
+      const Eigen::Vector2d uv = camera.Project(x);
+      if (uv.x() < -radius || uv.y() < -radius || uv.x() > camera.width - 1 + radius ||
+          uv.y() > camera.height - 1 + radius) {
+        continue;
+      }
+      const float* d = frame->root_sift.data() + static_cast<size_t>(k) * 128;
+      const auto [cx, cy] = cell_of(uv.x(), uv.y());
+      double best = INFINITY, second = INFINITY;
+      int best_q = -1;
+      for (int gy = std::max(0, cy - 1); gy <= std::min(grid_h - 1, cy + 1); ++gy) {
+        for (int gx = std::max(0, cx - 1); gx <= std::min(grid_w - 1, cx + 1); ++gx) {
+          for (const int q : grid[static_cast<size_t>(gy) * grid_w + gx]) {
+            const double du = keypoints(q, 0) - uv.x(), dv = keypoints(q, 1) - uv.y();
+            if (du * du + dv * dv > r2) continue;
+            const double dist = distance(q, d);
+            if (dist < best) {
+              second = best;
+              best = dist;
+              best_q = q;
+            } else if (dist < second) {
+              second = dist;
+            }
+          }
+        }
+      }
+      if (best_q < 0 || best > options.max_descriptor_distance ||
+          best > options.search_ratio * second) {
+        continue;
+      }
+      if (best < claims[best_q].distance) claims[best_q] = {best, id, frame->point_in_enu[k]};
+    }
+  }
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector3d> points;
+  for (int q = 0; q < num_query; ++q) {
+    if (claims[q].point_id < 0) continue;
+    pixels.emplace_back(keypoints(q, 0), keypoints(q, 1));
+    points.push_back(claims[q].point);
+  }
+  PoseRefinement guided = SolveAndCheck(camera, pixels, points, s_epipolar_m, route, options);
+  // The search must add support, not replace a good pose by a worse one.
+  if (guided.status != RefineStatus::kOk || guided.num_inliers <= initial.num_inliers) {
+    return initial;
+  }
+  return guided;
 }
 
 }  // namespace epiloc

@@ -51,6 +51,16 @@ struct PointMatch {
   Eigen::Vector3d point_in_enu = Eigen::Vector3d::Zero();
 };
 
+// The 3-D points one database frame sees, each with the RootSIFT descriptor of the feature that
+// sees it (every observed feature, not only the matched prefix): the local map the refinement
+// searches by projection.
+struct FrameMapPoints {
+  std::vector<int64_t> point_id;
+  std::vector<Eigen::Vector3d> point_in_enu;
+  std::vector<float> root_sift;  // 128 per point
+  int size() const { return static_cast<int>(point_id.size()); }
+};
+
 // What one query/database pair gave.
 struct PairResult {
   int db_index = -1;  // index into the evaluator's database frame list
@@ -80,6 +90,10 @@ class PairEvaluator {
                                    const std::vector<int>& db_indices,
                                    int num_threads) const;
 
+  // With options.with_points: the points database frame `db_index` sees (loaded and cached
+  // with its features). Thread-safe.
+  std::shared_ptr<const FrameMapPoints> MapPoints(int db_index) const;
+
   // The same with one search of the query's descriptors against the window of `db_indices`
   // (WindowMatcher); the window slides incrementally between calls. Not thread-safe.
   std::vector<PairResult> EvaluateWindow(const Camera& query_camera,
@@ -94,6 +108,7 @@ class PairEvaluator {
     // With options.with_points: per kept row, the id (-1: none) and position of its 3-D point.
     std::vector<int64_t> point_id;
     std::vector<Eigen::Vector3d> point_in_enu;
+    std::shared_ptr<const FrameMapPoints> map_points;  // all its observed points
   };
   std::shared_ptr<const CachedFrame> Load(int db_index) const;
   PairResult EvaluateOne(const Camera& query_camera,

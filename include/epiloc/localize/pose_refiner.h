@@ -14,6 +14,7 @@
 // (a wrong pose is not reported).
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,12 @@ struct RefineOptions {
   double max_along_disagreement_m = 1.5;  // |s_pnp - s_epipolar| above this: rejected
   double max_cross_track_m = 8.0;   // farther from the route: rejected
   PnpOptions pnp = DefaultPnp();
+  // Search by projection (RefineByProjection): radius around each projected point, largest
+  // RootSIFT distance accepted, ratio of best to second best within the radius.
+  bool search_by_projection = true;
+  double search_radius_px = 4.0;
+  double max_descriptor_distance = 0.7;
+  double search_ratio = 0.9;
 
   void Check() const;
   static PnpOptions DefaultPnp();
@@ -60,5 +67,21 @@ PoseRefinement RefinePose(const Camera& camera,
                           double s_epipolar_m,
                           const Route& route,
                           const RefineOptions& options);
+
+// Search by projection (as feature-based SLAM tracks its local map): the points the window's
+// database frames see are projected with the `initial` pose (kOk); each is matched to the query
+// feature within search_radius_px of its projection with the nearest RootSIFT descriptor (at
+// most max_descriptor_distance, and below search_ratio times the second nearest within the
+// radius; a feature claimed by several points keeps the closest descriptor); PnP again on these
+// correspondences, with the same checks. Returns the new pose if it is ok with more inliers than
+// `initial`, else `initial`. `query_root_sift`: 128 floats per keypoint row (ToRootSift).
+PoseRefinement RefineByProjection(const Camera& camera,
+                                  const FeatureKeypoints& keypoints,
+                                  const std::vector<float>& query_root_sift,
+                                  const std::vector<std::shared_ptr<const FrameMapPoints>>& local_map,
+                                  const PoseRefinement& initial,
+                                  double s_epipolar_m,
+                                  const Route& route,
+                                  const RefineOptions& options);
 
 }  // namespace epiloc
