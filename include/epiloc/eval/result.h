@@ -34,9 +34,10 @@ namespace epiloc {
 
 // The names of the estimates a result can carry, in the order tables list them: "gps" (the
 // drive's own GNSS), "nearest" (nearest database frame), "dtw_fixed", "fit_fixed", "dtw_free",
-// "fit_free" (Kyutoku et al. DTW / V-fit with fixed or free ends), "online", "pnp" (rendered
-// LiDAR, Kurobe et al.), "anchor", "vo", "paper", "sim3", "piecewise". The one place they are
-// listed.
+// "fit_free" (Kyutoku et al. DTW / V-fit with fixed or free ends), "online", "pnp" (6-DoF
+// refinement against the survey's triangulated points), "anchor" (rendered LiDAR, Kurobe et al.),
+// "vo", "paper", "sim3", "piecewise" (georeferenced VO), "colmap" (COLMAP image registration,
+// tools/compare_colmap.sh). The one place they are listed.
 const std::vector<std::string>& KnownMethods();
 bool IsKnownMethod(const std::string& name);
 // Position of a method in KnownMethods() (for sorting); KnownMethods().size() if unknown.
