@@ -90,7 +90,8 @@ TEST(ResultCsv, StatusAndMethodNames) {
   EXPECT_EQ(StatusName(ResultStatus::kOffRoute), "off_route");
   EXPECT_TRUE(IsKnownMethod("piecewise"));
   EXPECT_FALSE(IsKnownMethod("GPS"));
-  EXPECT_EQ(KnownMethods().size(), 13u);
+  EXPECT_TRUE(IsKnownMethod("colmap"));
+  EXPECT_EQ(KnownMethods().size(), 14u);
   EXPECT_EQ(MethodRank("gps"), 0u);
 }
 
