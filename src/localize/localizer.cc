@@ -421,8 +421,15 @@ LocalizeRun Localize(const std::string& db_path,
         state.refined = RefinePose(query_camera, query.features.keypoints, state.pairs, s, route,
                                    options.refine);
         if (options.refine.search_by_projection && state.refined->status == RefineStatus::kOk) {
+          // The local map: the points seen by the database frames from local_map_behind_m behind
+          // to local_map_ahead_m ahead of the estimate (far points constrain the along-track
+          // position), the evaluated window's first.
           std::vector<std::shared_ptr<const FrameMapPoints>> local_map;
           for (const PairResult& p : state.pairs) local_map.push_back(evaluator.MapPoints(p.db_index));
+          for (const int j : FramesBetween(db_s, s - options.refine.local_map_behind_m,
+                                           s + options.refine.local_map_ahead_m)) {
+            local_map.push_back(evaluator.MapPoints(j));
+          }
           const std::vector<float> root_sift =
               ToRootSift(query.features.descriptors, query.features.size());
           state.refined = RefineByProjection(query_camera, query.features.keypoints, root_sift,
