@@ -40,8 +40,8 @@ struct RefineOptions {
   double search_radius_px = 4.0;
   double max_descriptor_distance = 0.7;
   double search_ratio = 0.9;
-  double local_map_behind_m = 5.0;   // database frames searched by projection: this far behind
-  double local_map_ahead_m = 20.0;   // ... to this far ahead of the epipolar estimate
+  double local_map_behind_m = 2.0;   // database frames searched by projection: this far behind
+  double local_map_ahead_m = 10.0;   // ... to this far ahead of the epipolar estimate
 
   void Check() const;
   static PnpOptions DefaultPnp();
