@@ -24,9 +24,12 @@ for mode in online free fixed; do
     "$epiloc" localize --db "$work/route.sqlite" --drive "$work/query" --mode "$mode" \
     --threads "$threads" --out "$work/$mode.csv" --quiet > /dev/null
   read -r wall_s rss_kb user_s sys_s < "$work/time"
+  # Along-track mean of each method in the file ("online 0.105 pnp 0.049").
   mean=$("$epiloc" evaluate --result "$work/$mode.csv" --truth "$work/query" \
-    --route "$work/route.sqlite" --no-gnss 2>/dev/null | awk '/^Mean\|e\|/ {print $NF; exit}')
+    --route "$work/route.sqlite" --no-gnss 2>/dev/null | awk '
+      NR == 2 { for (i = 1; i <= NF; ++i) name[i] = $i; n = NF }
+      /^Mean\|e\|/ { for (i = 2; i <= NF; ++i) printf "%s%s %s", (i > 2 ? ", " : ""), name[i - 1], $i; exit }')
   awk -v m="$mode" -v w="$wall_s" -v r="$rss_kb" -v u="$user_s" -v s="$sys_s" -v e="$mean" 'BEGIN {
-    printf "  %-7s %6.2f frames/s  (%.1f s wall, %.1f cores busy)  peak memory %6.1f MB  along-track mean %s m\n",
+    printf "  %-7s %6.2f frames/s  (%.1f s wall, %.1f cores busy)  peak memory %6.1f MB  along-track mean [m] %s\n",
       m, 77 / w, w, (u + s) / w, r / 1024, e }'
 done
