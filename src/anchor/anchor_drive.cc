@@ -15,6 +15,7 @@
 #include "epiloc/camera/undistorter.h"
 #include "epiloc/cloud/tiled_cloud.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/parallel.h"
 #include "epiloc/io/frame_reader.h"
 
 namespace epiloc {
@@ -151,7 +152,8 @@ AnchorDriveResult AnchorDrive(const AnchorInputs& inputs,
   const OpenCvThreadsGuard opencv_threads(options.num_threads > 1 ? 1 : cv::getNumThreads());
   std::mutex progress_mutex;
   int64_t done = 0;
-  anchor_internal::ParallelFor(static_cast<int>(indices.size()), options.num_threads, [&](int k) {
+  ParallelFor(static_cast<int>(indices.size()), options.num_threads, [&](int64_t k64) {
+    const int k = static_cast<int>(k64);
     const FrameRecord& record = drive.frames[indices[k]];
     const cv::Mat image = undistorter.Undistort(reader.ReadColour(indices[k]));
     const auto gnss = drive.gnss.Interpolate(record.timestamp_s, drive.max_gap_s);

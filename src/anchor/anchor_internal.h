@@ -1,13 +1,8 @@
 // Helpers shared by the anchor module's sources (not installed).
 #pragma once
 
-#include <atomic>
-#include <exception>
-#include <functional>
 #include <memory>
-#include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -20,32 +15,6 @@
 
 namespace epiloc {
 namespace anchor_internal {
-
-// Runs task(i) for i in [0, n) on up to `num_threads` threads (the calling thread included),
-// handing out indices in increasing order. The first exception thrown by a task is rethrown
-// after all threads have stopped; the remaining indices are then skipped.
-inline void ParallelFor(int n, int num_threads, const std::function<void(int)>& task) {
-  const int workers = std::max(1, std::min(num_threads, n));
-  std::atomic<int> next{0};
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  const auto work = [&] {
-    for (int i = next++; i < n; i = next++) {
-      try {
-        task(i);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(error_mutex);
-        if (!error) error = std::current_exception();
-        next = n;
-      }
-    }
-  };
-  std::vector<std::thread> threads;
-  for (int t = 1; t < workers; ++t) threads.emplace_back(work);
-  work();
-  for (auto& thread : threads) thread.join();
-  if (error) std::rethrow_exception(error);
-}
 
 // map_from_cam of a camera whose position sample (WGS-84 centre, enu_from_cam in the local ENU
 // at that position) is expressed in the map's ENU frame.

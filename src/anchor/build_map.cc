@@ -12,12 +12,12 @@
 #include "epiloc/cloud/cloud_io.h"
 #include "epiloc/cloud/voxel.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/parallel.h"
 
 namespace epiloc {
 namespace {
 
 using anchor_internal::MapFromSample;
-using anchor_internal::ParallelFor;
 
 CloudFormat ScanFormat(const LidarScan& scan, const std::string& path) {
   if (scan.format == "kitti_bin") return CloudFormat::kKittiBin;
@@ -186,7 +186,8 @@ PointCloud MergeScans(const Drive& drive,
   std::vector<PointCloud> scans(batch);
   for (int first = 0; first < num_scans; first += batch) {
     const int n = std::min(batch, num_scans - first);
-    ParallelFor(n, options.num_threads, [&](int i) {
+    ParallelFor(n, options.num_threads, [&](int64_t i64) {
+      const int i = static_cast<int>(i64);
       scans[i] = ReadScanInMap(drive, drive.lidar[first + i], map_frame, options);
     });
     for (int i = 0; i < n; ++i) {

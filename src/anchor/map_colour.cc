@@ -10,13 +10,13 @@
 #include "epiloc/anchor/build_map.h"
 #include "epiloc/camera/undistorter.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/parallel.h"
 #include "epiloc/io/frame_reader.h"
 
 namespace epiloc {
 namespace {
 
 using anchor_internal::MapFromSample;
-using anchor_internal::ParallelFor;
 
 // Per point: the running sum (average) or the best sample (closest).
 struct ColourAccumulator {
@@ -144,7 +144,8 @@ void ColorizeCloud(const Drive& drive,
     const float max_range = static_cast<float>(options.max_range_m);
     const float min_range = static_cast<float>(options.min_range_m);
     const int chunks = std::max(1, num_threads);
-    ParallelFor(chunks, num_threads, [&](int chunk) {
+    ParallelFor(chunks, num_threads, [&](int64_t chunk64) {
+      const int chunk = static_cast<int>(chunk64);
       const size_t begin = n * chunk / chunks;
       const size_t end = n * (chunk + 1) / chunks;
       for (size_t i = begin; i < end; ++i) {

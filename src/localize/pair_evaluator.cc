@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "epiloc/core/error.h"
+#include "epiloc/core/parallel.h"
 
 namespace epiloc {
 
@@ -166,37 +167,13 @@ PairResult PairEvaluator::EvaluateOne(const Camera& query_camera,
   return EpipoleOfMatches(query_camera, query_keypoints, db_index, *db_frame, rows);
 }
 
-void PairEvaluator::ParallelFor(size_t n,
-                                int num_threads,
-                                const std::function<void(size_t)>& task) {
-  std::atomic<size_t> next{0};
-  std::exception_ptr failure;
-  std::mutex failure_mutex;
-  auto work = [&]() {
-    for (size_t k = next++; k < n; k = next++) {
-      try {
-        task(k);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(failure_mutex);
-        if (!failure) failure = std::current_exception();
-      }
-    }
-  };
-  const int threads = std::max(1, std::min<int>(num_threads, static_cast<int>(n)));
-  std::vector<std::thread> workers;
-  for (int t = 1; t < threads; ++t) workers.emplace_back(work);
-  work();
-  for (std::thread& worker : workers) worker.join();
-  if (failure) std::rethrow_exception(failure);
-}
-
 std::vector<PairResult> PairEvaluator::Evaluate(const Camera& query_camera,
                                                 const FeatureKeypoints& query_keypoints,
                                                 const DescriptorIndex& query_index,
                                                 const std::vector<int>& db_indices,
                                                 int num_threads) const {
   std::vector<PairResult> results(db_indices.size());
-  ParallelFor(db_indices.size(), num_threads, [&](size_t k) {
+  ParallelFor(static_cast<int64_t>(db_indices.size()), num_threads, [&](int64_t k) {
     results[k] = EvaluateOne(query_camera, query_keypoints, query_index, db_indices[k]);
   });
   return results;
@@ -215,7 +192,7 @@ std::vector<PairResult> PairEvaluator::EvaluateWindow(const Camera& query_camera
   const std::unordered_map<int, std::vector<WindowMatch>> matches = window_matcher_.Match(
       query.descriptors, -1, options_.match.ratio, options_.match.num_checks, num_threads);
   std::vector<PairResult> results(db_indices.size());
-  ParallelFor(db_indices.size(), num_threads, [&](size_t k) {
+  ParallelFor(static_cast<int64_t>(db_indices.size()), num_threads, [&](int64_t k) {
     const int db_index = db_indices[k];
     std::vector<std::pair<int, int>> rows;
     const auto it = matches.find(db_index);

@@ -17,44 +17,13 @@
 #include <Eigen/Dense>
 
 #include "epiloc/core/error.h"
+#include "epiloc/core/parallel.h"
 #include "epiloc/db/database.h"
 
 namespace epiloc {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-// Runs fn(k) for k in [0, n) on `num_threads` threads; the first exception is rethrown after all
-// threads stopped.
-template <typename Function>
-void ParallelFor(size_t n, int num_threads, Function&& fn) {
-  std::atomic<size_t> next{0};
-  std::atomic<bool> stop{false};
-  std::exception_ptr failure;
-  std::mutex mutex;
-  auto work = [&]() {
-    while (!stop) {
-      const size_t k = next.fetch_add(1);
-      if (k >= n) return;
-      try {
-        fn(k);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(mutex);
-        if (!failure) failure = std::current_exception();
-        stop = true;
-      }
-    }
-  };
-  const int threads = static_cast<int>(std::min<size_t>(std::max(1, num_threads), n));
-  if (threads <= 1) {
-    work();
-  } else {
-    std::vector<std::thread> workers;
-    for (int i = 0; i < threads; ++i) workers.emplace_back(work);
-    for (std::thread& worker : workers) worker.join();
-  }
-  if (failure) std::rethrow_exception(failure);
-}
 
 // Disjoint sets over (frame, feature) nodes with path halving.
 class UnionFind {
@@ -271,7 +240,7 @@ void TriangulateDrive(Database& db,
     }
     std::vector<std::vector<std::pair<size_t, size_t>>> links(end - begin);
     std::vector<int64_t> pair_matches(end - begin, 0);
-    ParallelFor(end - begin, num_threads, [&](size_t b) {
+    ParallelFor(static_cast<int64_t>(end - begin), num_threads, [&](int64_t b) {
       const size_t i = begin + b;
       if (neighbours[i].empty()) return;
       const DescriptorIndex index(descriptors.at(i), options.matching, max_rows);
@@ -330,7 +299,7 @@ void TriangulateDrive(Database& db,
   summary.num_tracks += static_cast<int64_t>(track_list.size());
 
   std::vector<TrackTriangulation> results(track_list.size());
-  ParallelFor(track_list.size(), num_threads, [&](size_t t) {
+  ParallelFor(static_cast<int64_t>(track_list.size()), num_threads, [&](int64_t t) {
     std::vector<TrackObservation> observations;
     observations.reserve(track_list[t].size());
     for (const auto& [frame, feature] : track_list[t]) {

@@ -121,8 +121,6 @@ class PairEvaluator {
                               int db_index,
                               const CachedFrame& db_frame,
                               const std::vector<std::pair<int, int>>& rows) const;
-  // Runs task(k) for k in [0, n) on up to `num_threads` threads; rethrows the first error.
-  static void ParallelFor(size_t n, int num_threads, const std::function<void(size_t)>& task);
 
   const Database& db_;
   std::vector<DbFrame> frames_;
