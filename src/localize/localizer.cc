@@ -60,6 +60,19 @@ std::vector<int> FramesBetween(const std::vector<double>& db_s, double from, dou
   return out;
 }
 
+// `frames` (ascending s) thinned so that kept frames are at least `min_spacing_m` apart along
+// the route (greedy from the first); all of them when min_spacing_m <= 0.
+std::vector<int> Thinned(const std::vector<int>& frames,
+                         const std::vector<double>& db_s,
+                         double min_spacing_m) {
+  if (min_spacing_m <= 0 || frames.size() < 2) return frames;
+  std::vector<int> kept;
+  for (const int j : frames) {
+    if (kept.empty() || db_s[j] - db_s[kept.back()] >= min_spacing_m) kept.push_back(j);
+  }
+  return kept;
+}
+
 // The valid pair of smallest d (ties: more inliers); -1 if none.
 int NearestPair(const std::vector<PairResult>& pairs) {
   int best = -1;
@@ -179,6 +192,8 @@ void LocalizeOptions::Check() const {
   EPILOC_CHECK(gps_window_m > 0, "localize: gps_window_m must be > 0");
   EPILOC_CHECK(init_candidates >= 2, "localize: init_candidates must be >= 2");
   EPILOC_CHECK(track_window_m > 0, "localize: track_window_m must be > 0");
+  EPILOC_CHECK(max_window_frames >= 4, "localize: max_window_frames must be >= 4, got {}",
+               max_window_frames);
   EPILOC_CHECK(fit_window_m > 0, "localize: fit_window_m must be > 0");
   EPILOC_CHECK(lost_after_frames >= 1, "localize: lost_after_frames must be >= 1");
   EPILOC_CHECK(max_query_features >= 16, "localize: max_query_features must be >= 16");
@@ -228,6 +243,9 @@ LocalizeRun Localize(const std::string& db_path,
   LocalizeOptions effective = options;
   effective.track_window_m = std::max(options.track_window_m, 2.5 * median_spacing);
   effective.fit_window_m = std::max(options.fit_window_m, 2.5 * median_spacing);
+  // A dense survey (a high frame rate, a slow survey vehicle) would put many frames into each
+  // window; evaluating frames closer than this adds time, not accuracy.
+  const double min_window_spacing_m = 2.0 * effective.track_window_m / options.max_window_frames;
   const Drive drive = LoadDrive(drive_dir);
   const Undistorter undistorter(drive.camera);
   const Camera& query_camera = undistorter.undistorted_camera();
@@ -367,7 +385,9 @@ LocalizeRun Localize(const std::string& db_path,
         if (best >= 0) {
           const double s0 = db_s[coarse[best].db_index];
           state.pairs = evaluate(
-              FramesBetween(db_s, s0 - effective.track_window_m, s0 + effective.track_window_m));
+              Thinned(FramesBetween(db_s, s0 - effective.track_window_m,
+                                    s0 + effective.track_window_m),
+                      db_s, min_window_spacing_m));
           diag.reinitialised = true;
           ++run.num_reinitialisations;
         } else {
@@ -376,7 +396,8 @@ LocalizeRun Localize(const std::string& db_path,
       } else {
         const double predicted = s_est + velocity * (t - t_est);
         const double margin = effective.track_window_m + 0.5 * std::abs(velocity * (t - t_est));
-        state.pairs = evaluate(FramesBetween(db_s, predicted - margin, predicted + margin));
+        state.pairs = evaluate(Thinned(FramesBetween(db_s, predicted - margin, predicted + margin),
+                                       db_s, min_window_spacing_m));
       }
     }
 
@@ -390,9 +411,10 @@ LocalizeRun Localize(const std::string& db_path,
         lo = std::min(lo, db_s[p.db_index]);
         hi = std::max(hi, db_s[p.db_index]);
       }
-      const std::vector<int> more =
+      const std::vector<int> more = Thinned(
           side > 0 ? FramesBetween(db_s, lo - effective.track_window_m, lo - 1e-6)
-                   : FramesBetween(db_s, hi + 1e-6, hi + effective.track_window_m);
+                   : FramesBetween(db_s, hi + 1e-6, hi + effective.track_window_m),
+          db_s, min_window_spacing_m);
       if (more.empty()) break;  // at an end of the route
       std::vector<PairResult> extra = evaluate(more);
       state.pairs.insert(state.pairs.end(), extra.begin(), extra.end());

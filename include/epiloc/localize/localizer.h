@@ -40,6 +40,9 @@ struct LocalizeOptions {
   // least 2.5 database frame spacings; the window is extended when it does not bracket the
   // vehicle).
   double track_window_m = 2.0;
+  // A denser survey is thinned to about this many frames per tracking window (frames at least
+  // 2 * track_window_m / max_window_frames apart), so its frame rate does not set the speed.
+  int max_window_frames = 8;
   // The V-fit uses database frames within this distance of the DTW match (at least 2.5 spacings).
   double fit_window_m = 2.6;
   // Consecutive frames without a valid pair after which the track is lost (re-initialised).
