@@ -2,14 +2,12 @@
 // processes (CTest runs every test in its own process), and pose comparisons.
 #pragma once
 
-#include <unistd.h>
-
-#include <filesystem>
 #include <string>
 
 #include <gtest/gtest.h>
 
 #include "epiloc/synth/drive_gen.h"
+#include "synth_world_util.h"
 #include "test_util.h"
 
 namespace epiloc {
@@ -22,9 +20,6 @@ inline Geodetic SynthOrigin() { return WorldOptions().origin; }
 // the temporary directory and reused (the name carries the options' version). Generated into a
 // private directory and renamed, so concurrent test processes never see a partial world.
 inline std::string SharedSyntheticWorld() {
-  namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / "epiloc_anchor_test_world_v1";
-  if (fs::exists(dir / "complete")) return dir.string();
   SynthOptions options;
   options.length_m = 50.0;
   options.seed = 3;
@@ -35,14 +30,7 @@ inline std::string SharedSyntheticWorld() {
   options.query.wobble_yaw_deg = 0.0;
   options.query.wobble_pitch_deg = 0.0;
   options.lidar_scan_files = true;
-  const fs::path tmp = dir.string() + ".tmp." + std::to_string(::getpid());
-  fs::remove_all(tmp);
-  GenerateSynthetic(options, tmp.string());
-  { std::ofstream(tmp / "complete") << "ok\n"; }
-  std::error_code error;
-  fs::rename(tmp, dir, error);
-  if (error) fs::remove_all(tmp);  // another process was first
-  return dir.string();
+  return SharedWorld("epiloc_anchor_test_world_v1", options);
 }
 
 }  // namespace epiloc

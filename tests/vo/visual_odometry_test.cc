@@ -4,13 +4,11 @@
 // trajectory error of monocular odometry; drift is that error in % of the distance driven.
 #include "epiloc/vo/visual_odometry.h"
 
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -21,6 +19,7 @@
 #include "epiloc/io/kitti.h"
 #include "epiloc/io/pose_files.h"
 #include "epiloc/synth/drive_gen.h"
+#include "synth_world_util.h"
 #include "test_util.h"
 
 namespace epiloc {
@@ -33,21 +32,12 @@ namespace fs = std::filesystem;
 // survey keep the generation short. Generated once per machine into the temporary directory
 // (private directory, then renamed, so concurrent test processes never see a partial world).
 std::string SharedVoWorld() {
-  const fs::path dir = fs::temp_directory_path() / "epiloc_vo_test_world_v1";
-  if (fs::exists(dir / "complete")) return dir.string();
   SynthOptions options;
   options.length_m = 90.0;
   options.seed = 5;
   options.lidar = false;
   options.survey.frame_rate_hz = 1.0;
-  const fs::path tmp = dir.string() + ".tmp." + std::to_string(::getpid());
-  fs::remove_all(tmp);
-  GenerateSynthetic(options, tmp.string());
-  { std::ofstream(tmp / "complete") << "ok\n"; }
-  std::error_code error;
-  fs::rename(tmp, dir, error);
-  if (error) fs::remove_all(tmp);  // another process was first
-  return dir.string();
+  return SharedWorld("epiloc_vo_test_world_v1", options);
 }
 
 // The VO trajectory against the drive's ground truth after Sim(3) alignment.
