@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <numeric>
+#include <optional>
 
 #include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
@@ -186,6 +187,81 @@ Attempt TryPose(const ImageFeatures& frame,
   return attempt;
 }
 
+// Matches the frame against survey photographs of the map (map_photos.h) and solves PnP on
+// their lifted features. With `guide`, each lifted point is first projected into the frame at
+// that pose and frame features are matched only to points predicted within guided_radius_px.
+Attempt TryPhotos(const ImageFeatures& frame,
+                 const Camera& camera,
+                 MapPhotoCache* cache,
+                 const std::vector<int>& views,
+                 const Rigid3d* guide,
+                 const AnchorOptions& options,
+                 const LiftFunction& lift) {
+  Attempt attempt;
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector3d> points;
+  int num_ratio = 0, num_geometric = 0;
+  ImageMatchOptions match_options = options.matching;
+  match_options.search_radius_px = guide != nullptr ? options.guided_radius_px : 0.0;
+  for (const int index : views) {
+    const MapPhoto& view = cache->Features(index, options.matching, lift);
+    attempt.coverage = std::max(attempt.coverage,
+                                static_cast<double>(cv::countNonZero(view.render.depth > 0.f)) /
+                                    static_cast<double>(view.render.depth.total()));
+    ImageFeatures reference;
+    std::vector<int> rows;
+    if (guide != nullptr) {
+      const Rigid3d cam_from_map = guide->Inverse();
+      for (size_t i = 0; i < view.points.size(); ++i) {
+        const Eigen::Vector3d x = cam_from_map * view.points[i];
+        if (x.z() <= 0.1) continue;
+        const Eigen::Vector2d p = camera.Project(x);
+        if (p.x() < 0 || p.y() < 0 || p.x() > camera.width - 1 || p.y() > camera.height - 1) {
+          continue;
+        }
+        cv::KeyPoint k = view.features.keypoints[i];
+        k.pt = cv::Point2f(static_cast<float>(p.x()), static_cast<float>(p.y()));
+        reference.keypoints.push_back(k);
+        rows.push_back(static_cast<int>(i));
+      }
+      reference.descriptors.create(static_cast<int>(rows.size()), view.features.descriptors.cols,
+                                   view.features.descriptors.type());
+      for (size_t k = 0; k < rows.size(); ++k) {
+        view.features.descriptors.row(rows[k]).copyTo(
+            reference.descriptors.row(static_cast<int>(k)));
+      }
+    } else {
+      reference = view.features;
+      rows.resize(view.points.size());
+      std::iota(rows.begin(), rows.end(), 0);
+    }
+    if (reference.keypoints.size() < 2) continue;
+    const ImageMatches matches = MatchFeatures(frame, reference, match_options);
+    num_ratio += matches.num_ratio;
+    num_geometric += matches.num_geometric;
+    for (size_t k = 0; k < matches.frame_index.size(); ++k) {
+      const cv::Point2f& p = frame.keypoints[matches.frame_index[k]].pt;
+      pixels.emplace_back(p.x, p.y);
+      points.push_back(view.points[rows[matches.render_index[k]]]);
+    }
+  }
+  attempt.covered = attempt.coverage >= options.min_coverage;
+  if (!attempt.covered) {
+    attempt.message = fmt::format("the map fills {:.1f}% of the photographs (< {:.1f}%)",
+                                  100.0 * attempt.coverage, 100.0 * options.min_coverage);
+    return attempt;
+  }
+  attempt.num_matches = static_cast<int>(pixels.size());
+  attempt.pnp = EstimateAbsolutePose(pixels, points, camera, options.pnp);
+  if (!attempt.pnp.success) {
+    attempt.message = fmt::format("{} matches ({} after the ratio test): {}", num_geometric,
+                                  num_ratio, attempt.pnp.message);
+    return attempt;
+  }
+  attempt.map_from_cam = attempt.pnp.cam_from_world.Inverse();
+  return attempt;
+}
+
 // The features reordered by decreasing detector response.
 ImageFeatures StrongestFirst(const ImageFeatures& features) {
   std::vector<int> order(features.keypoints.size());
@@ -321,7 +397,8 @@ AnchorResult AnchorFrame(const cv::Mat& image,
                          const PointCloud& local_map,
                          const EnuFrame& map_frame,
                          const PosePrior& prior,
-                         const AnchorOptions& options) {
+                         const AnchorOptions& options,
+                         const MapPhotos* photos) {
   const auto start = std::chrono::steady_clock::now();
   options.Check();
   EPILOC_CHECK(image.cols == camera.width && image.rows == camera.height,
@@ -348,17 +425,59 @@ AnchorResult AnchorFrame(const cv::Mat& image,
   const std::vector<Rigid3d> candidates = GenerateCandidates(
       prior, options.candidates,
       options.seed * 1000003ULL + static_cast<uint64_t>(std::max<frame_t>(prior.frame, 0)));
+  // With map photographs (map_photos.h), a candidate is the photograph nearest to it (each
+  // photograph once) and refinement matches the photographs nearest to the solved pose, guided
+  // by it; otherwise candidates and refinement render the map.
+  std::optional<MapPhotoCache> photo_cache;
+  CloudRenderOptions photo_render = options.render;
+  photo_render.num_threads = 1;
+  if (photos) photo_cache.emplace(*photos, local_map, photo_render);
+  const LiftFunction lift = [&](const CloudRenderResult& render, const Camera& view_camera,
+                                const Rigid3d& cam_from_map, const cv::Point2f& pixel,
+                                Eigen::Vector3d* x) {
+    return LiftOnLocalPlane(render, view_camera, cam_from_map, local_map, pixel,
+                            options.lift_radius_px, options.max_depth_step, x);
+  };
+  ImageFeatures frame_top;  // the strongest frame features, for matching photographs
+  if (photos) {
+    const int n = std::min<int>(options.max_frame_features, frame.keypoints.size());
+    frame_top.keypoints.assign(frame.keypoints.begin(), frame.keypoints.begin() + n);
+    frame_top.descriptors = frame.descriptors.rowRange(0, n);
+  }
+  std::vector<int> tried_views;
+  const auto attempt_at = [&](const Rigid3d& pose, bool guided) -> std::optional<Attempt> {
+    if (!photo_cache) {
+      return TryPose(frame, camera, local_map, pose, guided ? options.guided_radius_px : 0.0,
+                     guided ? std::min(options.render.splat_size_m, options.refine_splat_size_m)
+                            : options.render.splat_size_m,
+                     options);
+    }
+    std::vector<int> views = photos->Nearest(pose);
+    if (views.empty()) {
+      Attempt none;
+      none.message = fmt::format("no map photograph within {:.0f} m of the pose",
+                                 photos->options().max_view_distance_m);
+      return none;
+    }
+    if (!guided) {
+      views.resize(1);
+      if (std::count(tried_views.begin(), tried_views.end(), views[0]) > 0) return std::nullopt;
+      tried_views.push_back(views[0]);
+    }
+    return TryPhotos(frame_top, camera, &*photo_cache, views, guided ? &pose : nullptr, options, lift);
+  };
+
   Attempt best;
   best.message = "no candidate";
   bool any_covered = false;
   double max_coverage = 0.0;
   for (size_t c = 0; c < candidates.size(); ++c) {
-    Attempt attempt =
-        TryPose(frame, camera, local_map, candidates[c], 0.0, options.render.splat_size_m, options);
-    any_covered = any_covered || attempt.covered;
-    max_coverage = std::max(max_coverage, attempt.coverage);
-    if (c == 0 || BetterAttempt(attempt, best)) {
-      best = std::move(attempt);
+    std::optional<Attempt> attempt = attempt_at(candidates[c], false);
+    if (!attempt) continue;
+    any_covered = any_covered || attempt->covered;
+    max_coverage = std::max(max_coverage, attempt->coverage);
+    if (c == 0 || BetterAttempt(*attempt, best)) {
+      best = std::move(*attempt);
       result.best_candidate = static_cast<int>(c);
     }
   }
@@ -380,9 +499,7 @@ AnchorResult AnchorFrame(const cv::Mat& image,
   }
 
   for (int round = 0; round < options.refine_rounds; ++round) {
-    Attempt refined = TryPose(frame, camera, local_map, best.map_from_cam, options.guided_radius_px,
-                              std::min(options.render.splat_size_m, options.refine_splat_size_m),
-                              options);
+    Attempt refined = *attempt_at(best.map_from_cam, true);
     if (!refined.pnp.success) break;
     const double moved_m = (refined.map_from_cam.translation - best.map_from_cam.translation).norm();
     const double turned_deg =

@@ -114,6 +114,7 @@ void AnchorInputs::Check() const {
   EPILOC_CHECK(!cloud_path.empty(), "--cloud is required");
   EPILOC_CHECK(!drive_dir.empty(), "--drive is required");
   CheckGeodetic(map_origin, "map origin");
+  photos.Check();
   EPILOC_CHECK(every >= 1, "--every must be >= 1, got {}", every);
   EPILOC_CHECK(max_whole_points >= 0, "anchor inputs: max_whole_points must be >= 0");
   EPILOC_CHECK(std::isfinite(max_map_distance_m) && max_map_distance_m > 0,
@@ -141,6 +142,12 @@ AnchorDriveResult AnchorDrive(const AnchorInputs& inputs,
   }
   if (options.render.shading == RenderShading::kIntensity && !map->has_intensity()) {
     Throw("{}: --shading intensity needs a map with intensity", inputs.cloud_path);
+  }
+  std::unique_ptr<MapPhotos> photos;
+  if (!inputs.photos_dir.empty()) {
+    photos = std::make_unique<MapPhotos>(inputs.photos_dir, map_frame, inputs.photos);
+    spdlog::info("matching against {} posed map photographs of {}", photos->size(),
+                 inputs.photos_dir);
   }
   const Undistorter undistorter(drive.camera);
   const Camera& camera = undistorter.undistorted_camera();
@@ -177,7 +184,7 @@ AnchorDriveResult AnchorDrive(const AnchorInputs& inputs,
                                                  -options.heading_error_deg,
                                                  options.heading_error_deg)(rng));
         }
-        result = AnchorFrame(image, camera, local, map_frame, *prior, options);
+        result = AnchorFrame(image, camera, local, map_frame, *prior, options, photos.get());
       }
     }
     out.frames[k] = std::move(result);

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "anchor_internal.h"
+#include "epiloc/anchor/map_photos.h"
 #include "epiloc/camera/undistorter.h"
 #include "epiloc/core/error.h"
 #include "epiloc/io/frame_reader.h"
@@ -88,6 +89,11 @@ FrameView RenderFrameView(const FrameViewInputs& inputs) {
   if (cv::countNonZero(view.render.depth > 0.f) == 0) {
     Throw("{}: the cloud does not cover frame {} of {}: no point in view at the {} pose",
           inputs.cloud_path, inputs.frame, inputs.drive_dir, view.pose_source);
+  }
+  if (!inputs.photos_dir.empty()) {
+    const MapPhotos photos(inputs.photos_dir, map_frame, inputs.photos);
+    MapPhotoCache(photos, local, inputs.render)
+        .Texture(view.camera, view.map_from_cam.Inverse(), &view.render);
   }
   return view;
 }

@@ -163,6 +163,13 @@ int RunAnchor(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--photometric", options.photometric,
                "Finish with direct photometric refinement against the rendering");
+  app.add_option("--map-photos", inputs.photos_dir,
+                 "Drive of the map's photographs (frames + oriented poses, e.g. the drive "
+                 "build-map --colorize used): frames are matched to them, lifted onto the map, "
+                 "instead of to renderings (much more accurate and robust)");
+  app.add_option("--photos-per-pose", inputs.photos.max_views,
+                 "Map photographs matched per refinement round, nearest first")
+      ->capture_default_str();
   app.add_option("--splat-size", options.render.splat_size_m, "Metric splat size, metres")
       ->capture_default_str();
   app.add_option("--threads", options.num_threads, "Frames anchored in parallel")

@@ -54,6 +54,8 @@ int RunRender(int argc, char** argv) {
   app.add_option("--prior", prior, "Pose when --pose is not given: auto | truth | gnss")
       ->capture_default_str();
   app.add_option("--shading", shading, "auto | intensity | colour")->capture_default_str();
+  app.add_option("--map-photos", inputs.photos_dir,
+                 "Drive of the map's photographs: texture the view from them per pixel");
   app.add_option("--splat-size", inputs.render.splat_size_m, "Metric splat size, metres")
       ->capture_default_str();
   app.add_option("--camera-height", inputs.prior.camera_height_m,

@@ -39,6 +39,7 @@
 
 #include "epiloc/geometry/absolute_pose.h"
 #include "epiloc/anchor/image_matching.h"
+#include "epiloc/anchor/map_photos.h"
 #include "epiloc/anchor/photometric.h"
 #include "epiloc/anchor/pose_prior.h"
 #include "epiloc/cloud/point_cloud.h"
@@ -132,14 +133,16 @@ struct AnchorResult {
 };
 
 // Anchors one frame. `image`: the frame undistorted into `camera` (grey or BGR); `local_map`: the
-// map near the prior (map frame about `map_frame`'s origin); `prior` from MakePosePrior. Expected
-// failures are statuses, not exceptions. Thread-safe (no shared state).
+// map near the prior (map frame about `map_frame`'s origin); `prior` from MakePosePrior;
+// `photos`: the map's photographs (map_photos.h), matched instead of renderings (nullptr = render
+// the map). Expected failures are statuses, not exceptions. Thread-safe (no shared state).
 AnchorResult AnchorFrame(const cv::Mat& image,
                          const Camera& camera,
                          const PointCloud& local_map,
                          const EnuFrame& map_frame,
                          const PosePrior& prior,
-                         const AnchorOptions& options);
+                         const AnchorOptions& options,
+                         const MapPhotos* photos = nullptr);
 
 // The prior with its heading turned by `delta_deg` (orientation recomputed).
 PosePrior RotatePriorHeading(const PosePrior& prior, double delta_deg);
@@ -151,6 +154,8 @@ struct AnchorInputs {
   std::string drive_dir;    // the drive whose frames are anchored
   std::vector<frame_t> frames;  // frame numbers to anchor; empty = every `every`-th frame
   int every = 1;                // with frames empty: every n-th frame of the drive
+  std::string photos_dir;   // drive of the map's photographs (map_photos.h; "" = none)
+  MapPhotoOptions photos;
   std::string tile_dir;     // cache of tiles for a large single-file map ("" = <cloud>.tiles)
   int64_t max_whole_points = 20000000;  // larger single-file maps are tiled (bounded memory)
   double max_map_distance_m = 1000.0;   // the cloud must come this close to the drive's GNSS

@@ -7,6 +7,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "epiloc/anchor/map_photos.h"
 #include "epiloc/anchor/pose_prior.h"
 #include "epiloc/camera/camera.h"
 #include "epiloc/cloud/render.h"
@@ -33,6 +34,8 @@ struct FrameViewInputs {
   ViewPose pose = ViewPose::kAuto;
   PriorOptions prior;             // for ViewPose::kGnss
   CloudRenderOptions render;
+  std::string photos_dir;         // map photographs that texture the view ("" = none)
+  MapPhotoOptions photos;
   double load_radius_m = 90.0;    // map loaded around the camera, metres
   double max_map_distance_m = 1000.0;  // the cloud must come this close to the drive
 
