@@ -13,9 +13,10 @@ namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
 
+// Bilinear sample at (x, y) in [0, cols - 1] x [0, rows - 1] (images of at least 2 x 2).
 float SampleBilinear(const cv::Mat& grey, float x, float y) {
-  const int x0 = static_cast<int>(std::floor(x));
-  const int y0 = static_cast<int>(std::floor(y));
+  const int x0 = std::min(static_cast<int>(std::floor(x)), grey.cols - 2);
+  const int y0 = std::min(static_cast<int>(std::floor(y)), grey.rows - 2);
   const float ax = x - x0;
   const float ay = y - y0;
   const uint8_t* r0 = grey.ptr<uint8_t>(y0);
@@ -147,8 +148,8 @@ cv::Mat MapPhotoCache::Texture(const Camera& camera,
   const float vcx = static_cast<float>(view_camera.cx), vcy = static_cast<float>(view_camera.cy);
   const float rel = static_cast<float>(options.depth_tolerance);
   const float abs_m = static_cast<float>(options.depth_tolerance_m);
-  const float max_x = static_cast<float>(view_camera.width - 1.001);
-  const float max_y = static_cast<float>(view_camera.height - 1.001);
+  const float max_x = static_cast<float>(view_camera.width - 1);
+  const float max_y = static_cast<float>(view_camera.height - 1);
   cv::parallel_for_(cv::Range(0, depth.rows), [&](const cv::Range& rows) {
     for (int v = rows.start; v < rows.end; ++v) {
       const float* d_row = depth.ptr<float>(v);
@@ -163,11 +164,14 @@ cv::Mat MapPhotoCache::Texture(const Camera& camera,
           if (y.z() < 0.3f) continue;
           const float px = vfx * y.x() / y.z() + vcx;
           const float py = vfy * y.y() / y.z() + vcy;
-          if (!(px >= 0.f && py >= 0.f && px <= max_x && py <= max_y)) continue;
-          const float seen = views[k]->render.depth.at<float>(static_cast<int>(std::lround(py)),
-                                                       static_cast<int>(std::lround(px)));
+          // Half a pixel of slack at the border (the pixel still lies on the image).
+          if (!(px >= -0.5f && py >= -0.5f && px <= max_x + 0.5f && py <= max_y + 0.5f)) continue;
+          const float sx = std::clamp(px, 0.f, max_x);
+          const float sy = std::clamp(py, 0.f, max_y);
+          const float seen = views[k]->render.depth.at<float>(static_cast<int>(std::lround(sy)),
+                                                              static_cast<int>(std::lround(sx)));
           if (seen <= 0.f || std::abs(seen - y.z()) > rel * y.z() + abs_m) continue;
-          g_row[u] = cv::saturate_cast<uint8_t>(SampleBilinear(views[k]->grey, px, py));
+          g_row[u] = cv::saturate_cast<uint8_t>(SampleBilinear(views[k]->grey, sx, sy));
           m_row[u] = 255;
           break;
         }
