@@ -159,7 +159,7 @@ BundleSummary SolveBundle(BundleProblem& problem, const BundleOptions& options) 
   return summary;
 }
 
-PoseRefinement RefinePose(const Rigid3d& cam_from_world,
+MotionOnlyResult RefineMotionOnly(const Rigid3d& cam_from_world,
                           const std::vector<Eigen::Vector3d>& points_in_world,
                           const std::vector<Eigen::Vector2d>& x,
                           double max_error_px,
@@ -168,7 +168,7 @@ PoseRefinement RefinePose(const Rigid3d& cam_from_world,
   EPILOC_CHECK(points_in_world.size() == x.size(), "vo: {} points but {} observations",
                points_in_world.size(), x.size());
   const size_t n = x.size();
-  PoseRefinement result;
+  MotionOnlyResult result;
   result.cam_from_world = cam_from_world;
   result.inliers.assign(n, false);
   const double max_error2 = max_error_px * max_error_px;

@@ -290,8 +290,8 @@ void VisualOdometry::Impl::TryInitialize(FrameState& state) {
       points.push_back(track->point_in_world);
       x.push_back(xn);
     }
-    const PoseRefinement refined =
-        RefinePose(previous_pose_, points, x, options_.max_error_px, MakeMapOptions().bundle);
+    const MotionOnlyResult refined =
+        RefineMotionOnly(previous_pose_, points, x, options_.max_error_px, MakeMapOptions().bundle);
     FrameState& between = frames_[pending_[k].first];
     if (refined.num_inliers < options_.min_inliers) continue;
     between.status = VoFrameStatus::kTracked;
@@ -364,10 +364,11 @@ void VisualOdometry::Impl::TrackFrame(FrameState& state) {
   }
   const BundleOptions refine_options = MakeMapOptions().bundle;
   const Rigid3d predicted = PredictPose();
-  PoseRefinement refined = RefinePose(predicted, points, x, options_.max_error_px, refine_options);
+  MotionOnlyResult refined =
+      RefineMotionOnly(predicted, points, x, options_.max_error_px, refine_options);
   if (refined.num_inliers < options_.min_inliers) {
     if (const auto ransac = PnpRansac(points, x)) {
-      refined = RefinePose(*ransac, points, x, options_.max_error_px, refine_options);
+      refined = RefineMotionOnly(*ransac, points, x, options_.max_error_px, refine_options);
     }
   }
   if (refined.num_inliers < options_.min_inliers) {

@@ -50,15 +50,16 @@ struct BundleSummary {
 // adjustable). Throws Error for indices out of range.
 BundleSummary SolveBundle(BundleProblem& problem, const BundleOptions& options);
 
-// Refines one pose from 2D-3D correspondences (points fixed) by robust least squares starting at
-// `cam_from_world`, then re-estimates on the inliers (error <= max_error_px) once more.
-struct PoseRefinement {
+// Motion-only adjustment: refines one pose from 2D-3D correspondences (points fixed) by robust
+// least squares starting at `cam_from_world`, then re-estimates on the inliers (error <=
+// max_error_px) once more.
+struct MotionOnlyResult {
   Rigid3d cam_from_world;
   std::vector<bool> inliers;  // per correspondence, error <= max_error_px after refinement
   int num_inliers = 0;
   double rms_px = 0.0;  // over the inliers
 };
-PoseRefinement RefinePose(const Rigid3d& cam_from_world,
+MotionOnlyResult RefineMotionOnly(const Rigid3d& cam_from_world,
                           const std::vector<Eigen::Vector3d>& points_in_world,
                           const std::vector<Eigen::Vector2d>& x,
                           double max_error_px,
