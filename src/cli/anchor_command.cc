@@ -1,7 +1,10 @@
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <vector>
+
+#include <spdlog/spdlog.h>
 
 #include "cli_common.h"
 #include "epiloc/anchor/anchor.h"
@@ -178,7 +181,15 @@ int RunAnchor(int argc, char** argv) {
 
   MapOriginInputs origin_inputs{inputs.cloud_path, std::nullopt, db_path};
   if (!origin_text.empty()) origin_inputs.explicit_origin = ParseGeodetic(origin_text, "--cloud-origin");
-  inputs.map_origin = ResolveMapOrigin(origin_inputs).enu_origin;
+  const MapOrigin origin = ResolveMapOrigin(origin_inputs);
+  inputs.map_origin = origin.enu_origin;
+  if (inputs.photos_dir.empty() && origin.sidecar && !origin.sidecar->source_dir.empty() &&
+      std::filesystem::is_directory(origin.sidecar->source_dir)) {
+    spdlog::info(
+        "the map was built from drive {}: if it has camera frames, --map-photos {} matches "
+        "them instead of renderings (far more robust on sparse maps)",
+        origin.sidecar->source_dir, origin.sidecar->source_dir);
+  }
   if (!frames_text.empty()) inputs.frames = ParseFrameList(frames_text);
   options.matching.type = ParseFeatureType(matcher);
   options.render.shading = ParseRenderShading(shading);
