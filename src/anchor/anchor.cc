@@ -144,22 +144,16 @@ Attempt TryPose(const ImageFeatures& frame,
   cv::dilate(valid, near_map,
              cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * options.frame_margin_px + 1,
                                                                 2 * options.frame_margin_px + 1)));
-  ImageFeatures frame_near;
   std::vector<int> frame_rows;
   for (size_t i = 0; i < frame.keypoints.size(); ++i) {
     const cv::Point2f& p = frame.keypoints[i].pt;
     const int u = std::clamp(static_cast<int>(std::lround(p.x)), 0, near_map.cols - 1);
     const int v = std::clamp(static_cast<int>(std::lround(p.y)), 0, near_map.rows - 1);
     if (near_map.at<uint8_t>(v, u) == 0) continue;
-    frame_near.keypoints.push_back(frame.keypoints[i]);
     frame_rows.push_back(static_cast<int>(i));
     if (static_cast<int>(frame_rows.size()) >= options.max_frame_features) break;  // strongest first
   }
-  frame_near.descriptors.create(static_cast<int>(frame_rows.size()), frame.descriptors.cols,
-                                frame.descriptors.type());
-  for (size_t k = 0; k < frame_rows.size(); ++k) {
-    frame.descriptors.row(frame_rows[k]).copyTo(frame_near.descriptors.row(static_cast<int>(k)));
-  }
+  const ImageFeatures frame_near = SelectFeatures(frame, frame_rows);
   ImageMatchOptions match_options = options.matching;
   match_options.search_radius_px = search_radius_px;
   const ImageMatches matches = MatchFeatures(frame_near, rendered, match_options);
@@ -208,8 +202,9 @@ Attempt TryPhotos(const ImageFeatures& frame,
     attempt.coverage = std::max(attempt.coverage,
                                 static_cast<double>(cv::countNonZero(view.render.depth > 0.f)) /
                                     static_cast<double>(view.render.depth.total()));
-    ImageFeatures reference;
+    // Guided: the photograph's features placed where their points project at the guide pose.
     std::vector<int> rows;
+    std::vector<cv::Point2f> projected;
     if (guide != nullptr) {
       const Rigid3d cam_from_map = guide->Inverse();
       for (size_t i = 0; i < view.points.size(); ++i) {
@@ -219,22 +214,15 @@ Attempt TryPhotos(const ImageFeatures& frame,
         if (p.x() < 0 || p.y() < 0 || p.x() > camera.width - 1 || p.y() > camera.height - 1) {
           continue;
         }
-        cv::KeyPoint k = view.features.keypoints[i];
-        k.pt = cv::Point2f(static_cast<float>(p.x()), static_cast<float>(p.y()));
-        reference.keypoints.push_back(k);
         rows.push_back(static_cast<int>(i));
-      }
-      reference.descriptors.create(static_cast<int>(rows.size()), view.features.descriptors.cols,
-                                   view.features.descriptors.type());
-      for (size_t k = 0; k < rows.size(); ++k) {
-        view.features.descriptors.row(rows[k]).copyTo(
-            reference.descriptors.row(static_cast<int>(k)));
+        projected.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
       }
     } else {
-      reference = view.features;
       rows.resize(view.points.size());
       std::iota(rows.begin(), rows.end(), 0);
     }
+    ImageFeatures reference = SelectFeatures(view.features, rows);
+    for (size_t k = 0; k < projected.size(); ++k) reference.keypoints[k].pt = projected[k];
     if (reference.keypoints.size() < 2) continue;
     const ImageMatches matches = MatchFeatures(frame, reference, match_options);
     num_ratio += matches.num_ratio;
@@ -269,14 +257,7 @@ ImageFeatures StrongestFirst(const ImageFeatures& features) {
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
     return features.keypoints[a].response > features.keypoints[b].response;
   });
-  ImageFeatures sorted;
-  sorted.descriptors.create(static_cast<int>(order.size()), features.descriptors.cols,
-                            features.descriptors.type());
-  for (size_t k = 0; k < order.size(); ++k) {
-    sorted.keypoints.push_back(features.keypoints[order[k]]);
-    features.descriptors.row(order[k]).copyTo(sorted.descriptors.row(static_cast<int>(k)));
-  }
-  return sorted;
+  return SelectFeatures(features, order);
 }
 
 // Pitch (optical axis above the horizon) and roll (x axis below it) of a camera, degrees.
@@ -440,9 +421,9 @@ AnchorResult AnchorFrame(const cv::Mat& image,
   };
   ImageFeatures frame_top;  // the strongest frame features, for matching photographs
   if (photos) {
-    const int n = std::min<int>(options.max_frame_features, frame.keypoints.size());
-    frame_top.keypoints.assign(frame.keypoints.begin(), frame.keypoints.begin() + n);
-    frame_top.descriptors = frame.descriptors.rowRange(0, n);
+    std::vector<int> rows(std::min<size_t>(options.max_frame_features, frame.keypoints.size()));
+    std::iota(rows.begin(), rows.end(), 0);
+    frame_top = SelectFeatures(frame, rows);
   }
   std::vector<int> tried_views;
   const auto attempt_at = [&](const Rigid3d& pose, bool guided) -> std::optional<Attempt> {

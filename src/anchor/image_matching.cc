@@ -109,6 +109,18 @@ void ImageMatchOptions::Check() const {
                "match options: search_radius_px must be >= 0, got {}", search_radius_px);
 }
 
+ImageFeatures SelectFeatures(const ImageFeatures& features, const std::vector<int>& rows) {
+  ImageFeatures out;
+  out.keypoints.reserve(rows.size());
+  out.descriptors.create(static_cast<int>(rows.size()), features.descriptors.cols,
+                         features.descriptors.type());
+  for (size_t k = 0; k < rows.size(); ++k) {
+    out.keypoints.push_back(features.keypoints[rows[k]]);
+    features.descriptors.row(rows[k]).copyTo(out.descriptors.row(static_cast<int>(k)));
+  }
+  return out;
+}
+
 ImageFeatures ExtractFeatures(const cv::Mat& grey,
                               const ImageMatchOptions& options,
                               const cv::Mat& mask) {
@@ -147,11 +159,7 @@ ImageFeatures ExtractFeatures(const cv::Mat& grey,
     });
     order.resize(options.max_features);
     std::sort(order.begin(), order.end());
-    features.descriptors.create(options.max_features, descriptors.cols, descriptors.type());
-    for (int i = 0; i < options.max_features; ++i) {
-      features.keypoints.push_back(keypoints[order[i]]);
-      descriptors.row(order[i]).copyTo(features.descriptors.row(i));
-    }
+    return SelectFeatures({std::move(keypoints), descriptors}, order);
   } else {
     features.keypoints = std::move(keypoints);
     features.descriptors = descriptors;

@@ -112,14 +112,9 @@ const MapPhoto& MapPhotoCache::Features(int index,
     Eigen::Vector3d x;
     if (!lift(view.render, photos_.camera(), view.cam_from_map, all.keypoints[i].pt, &x)) continue;
     rows.push_back(static_cast<int>(i));
-    view.features.keypoints.push_back(all.keypoints[i]);
     view.points.push_back(x);
   }
-  view.features.descriptors.create(static_cast<int>(rows.size()), all.descriptors.cols,
-                                   all.descriptors.type());
-  for (size_t k = 0; k < rows.size(); ++k) {
-    all.descriptors.row(rows[k]).copyTo(view.features.descriptors.row(static_cast<int>(k)));
-  }
+  view.features = SelectFeatures(all, rows);
   view.has_features = true;
   return view;
 }

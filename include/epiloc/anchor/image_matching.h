@@ -40,6 +40,9 @@ struct ImageFeatures {
   cv::Mat descriptors;  // one row per keypoint (CV_8U for AKAZE, CV_32F for SIFT)
 };
 
+// The features at `rows` (indices into features.keypoints), in that order.
+ImageFeatures SelectFeatures(const ImageFeatures& features, const std::vector<int>& rows);
+
 // Detects and describes features of `grey` (CV_8UC1) where `mask` (CV_8UC1, optional) is
 // non-zero, keeping the max_features strongest.
 ImageFeatures ExtractFeatures(const cv::Mat& grey,
