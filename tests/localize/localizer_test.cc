@@ -136,15 +136,16 @@ TEST(Localizer, KittiDevelopmentScenario) {
   EXPECT_LE(MaxAbs(fixed->along_track), 1.0);
   // The gps baseline is what the localizer improves on.
   EXPECT_GT(evaluation.Find("gps")->along_track.mean_abs, 5 * online->along_track.mean_abs);
-  // 6-DoF refinement (issue 8): every frame refined; reached along-track mean 0.050 m, max
-  // 0.30 m, horizontal mean 0.075 m, rotation mean ~0.15 deg (FLANN's random trees vary runs).
+  // 6-DoF refinement (issue 8): every frame refined; reached along-track mean 0.039-0.043 m,
+  // max 0.11-0.16 m, horizontal mean 0.072-0.078 m over 9 runs (FLANN's random trees vary runs;
+  // COLMAP on the same frames: 0.042 / 0.152 / 0.088 m).
   const MethodEvaluation* pnp = evaluation.Find("pnp");
   ASSERT_NE(pnp, nullptr);
   EXPECT_EQ(pnp->evaluated(), 77);
   EXPECT_EQ(run.num_refined_ok, 77);
-  EXPECT_LE(pnp->along_track.mean_abs, 0.07);
-  EXPECT_LE(MaxAbs(pnp->along_track), 0.40);
-  EXPECT_LE(pnp->horizontal.mean_abs, 0.10);
+  EXPECT_LE(pnp->along_track.mean_abs, 0.05);
+  EXPECT_LE(MaxAbs(pnp->along_track), 0.25);
+  EXPECT_LE(pnp->horizontal.mean_abs, 0.09);
   EXPECT_LE(pnp->rotation.mean_abs, 0.30);
   EXPECT_LT(pnp->horizontal.mean_abs, 0.5 * online->horizontal.mean_abs);
   fs::remove_all(dir);

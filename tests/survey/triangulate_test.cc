@@ -100,7 +100,7 @@ TEST(TriangulateTrack, WrongObservationDroppedOthersKept) {
 
 TEST(TriangulateTrack, RejectsBadGeometry) {
   const Camera camera = TestCamera();
-  const TriangulateOptions options;  // 1.5 degrees, depth 0.5..150 m, 2 px
+  const TriangulateOptions options;  // 0.75 degrees, depth 0.5..150 m, 2 px
   const Rigid3d a = CamFromWorld(EnuFromCam(0.0), kFar);
   const Rigid3d b = CamFromWorld(EnuFromCam(0.0), kFar + Eigen::Vector3d(0.0, 1.0, 0.0));
   // Two rays at 0.6 degrees: too little parallax.
@@ -216,7 +216,7 @@ TEST(TriangulateDatabase, SyntheticFramesGiveTheTruePointsAndRejectWrongMatches)
   EXPECT_EQ(summary.frames_without_orientation, 1);
   EXPECT_EQ(summary.num_points, db.NumPoints());
   EXPECT_EQ(summary.num_observations, db.NumObservations());
-  EXPECT_GT(summary.num_points, 300);  // of 400, most seen by >= 2 frames at >= 1.5 degrees
+  EXPECT_GT(summary.num_points, 300);  // of 400, most seen by >= 2 frames at >= 0.75 degrees
   EXPECT_LT(summary.num_epipolar_inliers, summary.num_matches);  // swapped ones rejected
   EXPECT_LT(summary.mean_error_px, 1e-3);
 
@@ -338,7 +338,7 @@ TEST(TriangulateDatabase, SyntheticWorldPointsLieOnTheSurfaces) {
       "%zu point views: relative depth error median %.5f, 90th percentile %.5f, signed "
       "median %.5f; mean reprojection error %.3f px, mean track length %.2f\n",
       relative_errors.size(), median, p90, bias, summary.mean_error_px, summary.mean_track_length);
-  // 0.2 px of feature noise over rays meeting at >= 1.5 degrees: ~1 % along the ray at worst.
+  // 0.2 px of feature noise over rays meeting at >= 0.75 degrees: ~2 % along the ray at worst.
   EXPECT_LT(median, 0.01);
   EXPECT_LT(p90, 0.05);
   EXPECT_LT(std::abs(bias), 0.002);  // no scale or pose-convention error

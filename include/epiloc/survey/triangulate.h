@@ -45,8 +45,11 @@ struct TriangulateOptions {
   double max_epipolar_error_px = 2.0;
   // Observations with a larger reprojection error are dropped (worst first), pixels.
   double max_reprojection_error_px = 2.0;
-  // A point needs two of its rays to meet at least at this angle, degrees.
-  double min_triangulation_angle_deg = 1.5;
+  // A point needs two of its rays to meet at least at this angle, degrees. Low on purpose: the
+  // far, thin-parallax points (depth uncertain, bearing exact) still fix the rotation and,
+  // with many, the along-track position of a frame registered against them; measured on the
+  // KITTI drive, 0.75 instead of 1.5 degrees lowers the refinement's along-track error.
+  double min_triangulation_angle_deg = 0.75;
   // Depth along every observing camera's optical axis must lie in [min, max], metres.
   double min_depth_m = 0.5;
   double max_depth_m = 150.0;
