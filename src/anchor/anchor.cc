@@ -322,6 +322,12 @@ RenderShading ParseRenderShading(const std::string& name) {
   Throw("unknown shading '{}' (known: auto, intensity, colour, depth)", name);
 }
 
+PnpOptions AnchorOptions::WidePnp() {
+  PnpOptions pnp;
+  pnp.max_reprojection_px = 4.0;
+  return pnp;
+}
+
 void AnchorOptions::Check() const {
   prior.Check();
   candidates.Check();

@@ -161,6 +161,9 @@ int RunAnchor(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--max-rmse", options.max_rmse_px, "Higher reprojection RMSE (px): rejected")
       ->capture_default_str();
+  app.add_option("--pnp-max-error", options.pnp.max_reprojection_px,
+                 "PnP RANSAC inlier threshold, pixels")
+      ->capture_default_str();
   app.add_option("--refine-rounds", options.refine_rounds,
                  "Re-renders at the solved pose (the centimetre step)")
       ->capture_default_str();

@@ -68,15 +68,15 @@ TEST(AnchorKitti, DevelopmentScenarioWithMapPhotographs) {
                 rotation.back(), r.seconds);
   }
   ASSERT_EQ(result.frames.size(), 16u);
-  // Measured: 16 of 16 anchored, horizontal median 0.03-0.04 m, max 0.34-0.41 m (the turn, where
-  // the photographs, the map and the ground truth disagree by that much), rotation median
-  // 0.065 deg, max 0.73-0.82 deg.
+  // Measured: 16 of 16 anchored, horizontal median 0.032 m, max 0.28-0.31 m over heading-error
+  // seeds (the turn, where the photographs, the map and the ground truth disagree by that much),
+  // rotation median 0.069 deg, max 0.60 deg.
   EXPECT_GE(position.size(), 15u);  // >= 90 %
   ASSERT_FALSE(position.empty());
   EXPECT_LE(Median(position), 0.10);
-  EXPECT_LE(*std::max_element(position.begin(), position.end()), 0.50);
+  EXPECT_LE(*std::max_element(position.begin(), position.end()), 0.45);
   EXPECT_LE(Median(rotation), 0.20);
-  EXPECT_LE(*std::max_element(rotation.begin(), rotation.end()), 1.0);
+  EXPECT_LE(*std::max_element(rotation.begin(), rotation.end()), 0.8);
 }
 
 }  // namespace
