@@ -135,7 +135,7 @@ TEST(PipelineKitti, MapAnchorsVoGeorefDatabaseLocalize) {
   const MethodEvaluation& online = Method(evaluation, "online");
   std::printf("query online along-track mean %.3f m, max %.3f m\n",
               online.along_track.mean_abs, MaxAbs(online.along_track));
-  // Target: mean <= 0.25 m; reached 0.094 m.
+  // Target: mean <= 0.25 m; reached 0.094-0.098 m.
   EXPECT_EQ(online.evaluated(), 77);
   EXPECT_LE(online.along_track.mean_abs, 0.15);
 }
