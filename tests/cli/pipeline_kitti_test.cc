@@ -1,6 +1,6 @@
 // The survey chain without RTK on the shared KITTI drive (skipped without ../shared/data), the
 // development scenario of issues 6 and 7: a LiDAR map from camera 0's drive; camera 1 (all
-// frames, --gps-noise 3) anchored in it every 10th frame against camera 0's photographs; monocular
+// frames, --gps-noise 3) anchored in it every 5th frame against camera 0's photographs; monocular
 // VO of camera 1 georeferenced by those anchors; a route database from the georeferenced
 // trajectory; a camera-0 query (frames 1:154:2) localized against it. Each stage is evaluated
 // against the OXTS ground truth and asserts the accuracy reached.
@@ -81,7 +81,7 @@ TEST(PipelineKitti, MapAnchorsVoGeorefDatabaseLocalize) {
   anchor_inputs.cloud_path = map;
   anchor_inputs.map_origin = ReadMapSidecar(SidecarPath(map)).enu_origin;
   anchor_inputs.drive_dir = cam1.out_dir;
-  anchor_inputs.every = 10;
+  anchor_inputs.every = 5;
   anchor_inputs.photos_dir = cam0.out_dir;
   AnchorOptions anchor_options;
   anchor_options.heading_error_deg = 5.0;
@@ -92,7 +92,7 @@ TEST(PipelineKitti, MapAnchorsVoGeorefDatabaseLocalize) {
     if (a.status != AnchorStatus::kOk) continue;
     anchors.anchors.push_back({a.frame, a.timestamp_s, a.position, a.enu_from_cam, 0});
   }
-  EXPECT_GE(anchors.anchors.size(), 15u);  // of 16; reached 16
+  EXPECT_GE(anchors.anchors.size(), 28u);  // of 31; reached 31
 
   // VO and georeferencing.
   const VoResult vo = RunVisualOdometry(survey, VoOptions());
@@ -110,9 +110,10 @@ TEST(PipelineKitti, MapAnchorsVoGeorefDatabaseLocalize) {
   std::printf("georef horizontal max: paper %.3f m, sim3 %.3f m, piecewise %.3f m\n", paper_max,
               sim3_max, piecewise_max);
   // Targets: paper <= 1.3 m, piecewise <= 0.3 m. Reached: paper 2.04 m, sim3 1.40 m, piecewise
-  // 0.33 m (the anchors' own error in the turn, frames 60-70, which piecewise passes through).
+  // 0.283 m (the anchors' own error in the turn, frames 60-70, which piecewise passes through;
+  // 0.325 m with anchors every 10th frame).
   EXPECT_LE(paper_max, 2.5);
-  EXPECT_LE(piecewise_max, 0.5);
+  EXPECT_LE(piecewise_max, 0.35);
   EXPECT_LT(piecewise_max, paper_max);
 
   // A database from the piecewise trajectory, and a camera-0 query localized against it.
