@@ -139,6 +139,17 @@ BundleSummary SolveBundle(BundleProblem& problem, const BundleOptions& options) 
       ceres_problem.SetParameterBlockConstant(poses[i].values);
     }
   }
+  if (problem.scale_pose >= 0) {
+    EPILOC_CHECK(static_cast<size_t>(problem.scale_pose) < num_poses && problem.scale_axis >= 0 &&
+                     problem.scale_axis < 3,
+                 "vo: scale gauge pose {} axis {} out of range", problem.scale_pose,
+                 problem.scale_axis);
+    double* pose = poses[static_cast<size_t>(problem.scale_pose)].values;
+    if (!problem.pose_fixed[static_cast<size_t>(problem.scale_pose)] &&
+        ceres_problem.HasParameterBlock(pose)) {
+      ceres_problem.SetManifold(pose, new ceres::SubsetManifold(6, {3 + problem.scale_axis}));
+    }
+  }
   ceres::Solver::Summary ceres_summary;
   ceres::Solve(SolverOptions(options, true), &ceres_problem, &ceres_summary);
   summary.solved = ceres_summary.IsSolutionUsable();
@@ -160,10 +171,10 @@ BundleSummary SolveBundle(BundleProblem& problem, const BundleOptions& options) 
 }
 
 MotionOnlyResult RefineMotionOnly(const Rigid3d& cam_from_world,
-                          const std::vector<Eigen::Vector3d>& points_in_world,
-                          const std::vector<Eigen::Vector2d>& x,
-                          double max_error_px,
-                          const BundleOptions& options) {
+                                  const std::vector<Eigen::Vector3d>& points_in_world,
+                                  const std::vector<Eigen::Vector2d>& x,
+                                  double max_error_px,
+                                  const BundleOptions& options) {
   options.Check();
   EPILOC_CHECK(points_in_world.size() == x.size(), "vo: {} points but {} observations",
                points_in_world.size(), x.size());

@@ -29,6 +29,7 @@ VoResult RunVisualOdometry(const Drive& drive,
     odometry.ProcessFrame(drive.frames[i].frame, drive.frames[i].timestamp_s, image);
     if (progress) progress(static_cast<int64_t>(i + 1), static_cast<int64_t>(n));
   }
+  odometry.Finish();
   VoResult result = odometry.Result();
   result.summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

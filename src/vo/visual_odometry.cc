@@ -59,6 +59,8 @@ void VoOptions::Check() const {
                min_triangulation_parallax_deg);
   EPILOC_CHECK(ba_window >= 2, "vo: ba_window must be >= 2, got {}", ba_window);
   EPILOC_CHECK(ba_iterations >= 1, "vo: ba_iterations must be >= 1, got {}", ba_iterations);
+  EPILOC_CHECK(global_ba_iterations >= 0, "vo: global_ba_iterations must be >= 0, got {}",
+               global_ba_iterations);
   EPILOC_CHECK(huber_px > 0.0, "vo: huber_px must be > 0, got {}", huber_px);
   EPILOC_CHECK(num_threads >= 1, "vo: num_threads must be >= 1, got {}", num_threads);
 }
@@ -73,6 +75,7 @@ class VisualOdometry::Impl {
   }
 
   VoFrameStatus ProcessFrame(frame_t frame, double timestamp_s, const cv::Mat& image);
+  void Finish();
   VoResult Result() const;
 
  private:
@@ -82,6 +85,7 @@ class VisualOdometry::Impl {
     m.max_error_px = options_.max_error_px;
     m.min_parallax_deg = options_.min_triangulation_parallax_deg;
     m.ba_window = options_.ba_window;
+    m.keep_history = options_.global_ba_iterations > 0;
     m.bundle = BundleOptions();
     m.bundle.focal_px = 0.5 * (camera_.fx + camera_.fy);
     m.bundle.huber_px = options_.huber_px;
@@ -143,6 +147,8 @@ class VisualOdometry::Impl {
   double join_depth_ = 1.0;           // median depth of the last keyframe before the loss
   std::vector<double> join_scales_;   // per segment
   double ba_seconds_ = 0.0;
+  double global_ba_seconds_ = 0.0;
+  bool finished_ = false;
 };
 
 Rigid3d VisualOdometry::Impl::PredictPose() const {
@@ -168,6 +174,7 @@ VoFrameStatus VisualOdometry::Impl::ProcessFrame(frame_t frame,
   EPILOC_CHECK(image.cols == camera_.width && image.rows == camera_.height,
                "vo: frame {} is {}x{}, the camera {}x{}", frame, image.cols, image.rows,
                camera_.width, camera_.height);
+  EPILOC_CHECK(!finished_, "vo: frame {} after Finish()", frame);
   EPILOC_CHECK(frames_.empty() || timestamp_s >= frames_.back().timestamp_s,
                "vo: frame {} at {} s is before the previous frame", frame, timestamp_s);
   cv::Mat grey = image;
@@ -254,6 +261,12 @@ void VisualOdometry::Impl::TryInitialize(FrameState& state) {
   const keyframe_t second = map_.AddKeyframe(std::move(kf1));
   for (size_t i = 0; i < ids.size(); ++i) {
     if (!result.points_in_cam1[i]) continue;
+    // A point with too little parallax has no usable depth; it stays a candidate for
+    // triangulation from a later keyframe, as in TriangulateNew.
+    if (ParallaxDeg(Rigid3d(), result.cam2_from_cam1, *result.points_in_cam1[i]) <
+        options_.min_triangulation_parallax_deg) {
+      continue;
+    }
     MapTrack& track = map_.tracks()[ids[i]];
     track.point_in_world = *result.points_in_cam1[i];
     track.has_point = true;
@@ -434,6 +447,25 @@ void VisualOdometry::Impl::MakeKeyframe(FrameState& state, const Rigid3d& cam_fr
   SetPose(state, id, last_pose_);
 }
 
+void VisualOdometry::Impl::Finish() {
+  if (finished_) return;
+  finished_ = true;
+  if (options_.global_ba_iterations == 0) return;
+  const std::vector<Keyframe>& keyframes = map_.keyframes();
+  for (size_t i = 0; i < keyframes.size(); ++i) {
+    if (i > 0 && keyframes[i].segment == keyframes[i - 1].segment) continue;
+    const LocalBundleStats stats = map_.GlobalBundle(
+        keyframes[i].segment, static_cast<keyframe_t>(i), options_.global_ba_iterations);
+    global_ba_seconds_ += stats.seconds;
+    spdlog::debug(
+        "vo: global BA of segment {}: {} keyframes, {} points, {} observations ({} "
+        "removed), {:.2f} s",
+        keyframes[i].segment, stats.poses, stats.points, stats.observations,
+        stats.removed_observations, stats.seconds);
+  }
+  ba_seconds_ += global_ba_seconds_;
+}
+
 VoResult VisualOdometry::Impl::Result() const {
   VoResult result;
   int64_t inliers = 0;
@@ -467,6 +499,7 @@ VoResult VisualOdometry::Impl::Result() const {
   result.summary.mean_inliers =
       result.poses.empty() ? 0.0 : static_cast<double>(inliers) / result.poses.size();
   result.summary.ba_seconds = ba_seconds_;
+  result.summary.global_ba_seconds = global_ba_seconds_;
   return result;
 }
 
@@ -479,6 +512,8 @@ VoFrameStatus VisualOdometry::ProcessFrame(frame_t frame,
                                            const cv::Mat& image) {
   return impl_->ProcessFrame(frame, timestamp_s, image);
 }
+
+void VisualOdometry::Finish() { impl_->Finish(); }
 
 VoResult VisualOdometry::Result() const { return impl_->Result(); }
 

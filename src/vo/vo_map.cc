@@ -148,6 +148,88 @@ LocalBundleStats VoMap::LocalBundle(int segment, keyframe_t segment_first) {
   return stats;
 }
 
+LocalBundleStats VoMap::GlobalBundle(int segment, keyframe_t segment_first, int iterations) {
+  const auto start = std::chrono::steady_clock::now();
+  LocalBundleStats stats;
+  keyframe_t last = segment_first;
+  while (last + 1 < static_cast<keyframe_t>(keyframes_.size()) &&
+         keyframe(last + 1).segment == segment) {
+    ++last;
+  }
+  if (last - segment_first < 2) return stats;  // nothing the local BA did not already see
+
+  const auto in_segment = [&](keyframe_t id) { return id >= segment_first && id <= last; };
+  std::vector<MapTrack*> tracks;
+  const auto collect = [&](MapTrack& track) {
+    int seen = 0;
+    for (const auto& o : track.observations) seen += in_segment(o.first) ? 1 : 0;
+    if (seen >= 2) {
+      tracks.push_back(&track);
+    } else if (seen > 0) {
+      track.has_point = false;  // its outliers removed, one view cannot hold a point
+    }
+  };
+
+  BundleProblem problem;
+  for (keyframe_t id = segment_first; id <= last; ++id) {
+    problem.cam_from_world.push_back(keyframe(id).cam_from_world);
+    problem.pose_fixed.push_back(id == segment_first);
+  }
+  // The scale: the second keyframe's largest translation coordinate (its baseline to the first).
+  problem.scale_pose = 1;
+  problem.cam_from_world[1].translation.cwiseAbs().maxCoeff(&problem.scale_axis);
+  BundleOptions options = options_.bundle;
+  options.max_iterations = iterations;
+  const double max_error2 = std::pow(options_.max_error_px / options_.bundle.focal_px, 2);
+  for (int round = 0; round < 2; ++round) {
+    tracks.clear();
+    for (auto& [id, track] : tracks_) {
+      if (track.has_point) collect(track);
+    }
+    for (MapTrack& track : kept_tracks_) {
+      if (track.has_point) collect(track);
+    }
+    problem.points_in_world.clear();
+    problem.observations.clear();
+    for (size_t p = 0; p < tracks.size(); ++p) {
+      problem.points_in_world.push_back(tracks[p]->point_in_world);
+      for (const auto& [kf_id, x] : tracks[p]->observations) {
+        if (!in_segment(kf_id)) continue;
+        problem.observations.push_back(
+            {static_cast<int>(kf_id - segment_first), static_cast<int>(p), x});
+      }
+    }
+    SolveBundle(problem, options);
+    for (size_t p = 0; p < tracks.size(); ++p) {
+      tracks[p]->point_in_world = problem.points_in_world[p];
+    }
+    // Outliers of the adjusted map leave the second round.
+    for (size_t p = 0; p < tracks.size(); ++p) {
+      auto& obs = tracks[p]->observations;
+      const size_t before = obs.size();
+      obs.erase(std::remove_if(obs.begin(), obs.end(),
+                               [&](const std::pair<keyframe_t, Eigen::Vector2d>& o) {
+                                 return in_segment(o.first) &&
+                                        SquaredReprojectionError(
+                                            problem.cam_from_world[o.first - segment_first],
+                                            tracks[p]->point_in_world, o.second) > max_error2;
+                               }),
+                obs.end());
+      stats.removed_observations += static_cast<int>(before - obs.size());
+    }
+  }
+  for (keyframe_t id = segment_first; id <= last; ++id) {
+    Keyframe& kf = keyframe(id);
+    kf.cam_from_world = problem.cam_from_world[static_cast<size_t>(id - segment_first)];
+  }
+  stats.poses = static_cast<int>(problem.cam_from_world.size());
+  stats.fixed_poses = 1;
+  stats.points = static_cast<int>(tracks.size());
+  stats.observations = static_cast<int>(problem.observations.size());
+  stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return stats;
+}
+
 std::pair<double, int> VoMap::DepthStats(keyframe_t id) const {
   const Keyframe& kf = keyframe(id);
   std::vector<double> depths;
@@ -178,6 +260,17 @@ void VoMap::TransformSegment(keyframe_t first, double scale, const Rigid3d& simi
   }
 }
 
+void VoMap::Keep(MapTrack&& track) {
+  if (options_.keep_history && track.has_point && track.observations.size() >= 2) {
+    kept_tracks_.push_back(std::move(track));
+  }
+}
+
+void VoMap::ClearTracks() {
+  for (auto& [id, track] : tracks_) Keep(std::move(track));
+  tracks_.clear();
+}
+
 void VoMap::Prune(keyframe_t newest, const std::vector<TrackedFeature>& alive) {
   const keyframe_t keep_from = newest - 2 * options_.ba_window;
   if (keep_from > 0) {
@@ -194,6 +287,7 @@ void VoMap::Prune(keyframe_t newest, const std::vector<TrackedFeature>& alive) {
     const bool recent =
         !track.observations.empty() && track.observations.back().first >= window_first;
     if (!recent && !alive_ids.count(it->first)) {
+      Keep(std::move(it->second));
       it = tracks_.erase(it);
     } else {
       ++it;

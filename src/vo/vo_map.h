@@ -38,12 +38,14 @@ struct MapTrack {
 };
 
 struct MapOptions {
-  double max_error_px = 2.5;
+  double max_error_px = 1.5;
   double min_parallax_deg = 1.0;
   int ba_window = 8;
   BundleOptions bundle;
+  bool keep_history = false;  // keep pruned tracks with points for GlobalBundle
 };
 
+// Figures of a local or global bundle adjustment.
 struct LocalBundleStats {
   int poses = 0;
   int fixed_poses = 0;
@@ -77,22 +79,31 @@ class VoMap {
   // held fixed. Observations with an error above max_error_px afterwards are removed.
   LocalBundleStats LocalBundle(int segment, keyframe_t segment_first);
 
+  // Bundle adjustment of every keyframe of `segment` and every point they see (kept tracks
+  // included, MapOptions::keep_history), `iterations` Levenberg-Marquardt iterations, twice: the
+  // second time without the observations the first left above max_error_px. The gauge: the
+  // segment's first keyframe is fixed and the scale by one translation coordinate of its second.
+  LocalBundleStats GlobalBundle(int segment, keyframe_t segment_first, int iterations);
+
   // Median depth and number of points seen by keyframe `id`.
   std::pair<double, int> DepthStats(keyframe_t id) const;
 
   // Applies x' = scale * R * x + t to the points and keyframes (>= first) of a segment.
   void TransformSegment(keyframe_t first, double scale, const Rigid3d& similarity_rigid);
 
-  // Forgets tracks (all of them: a new segment starts).
-  void ClearTracks() { tracks_.clear(); }
+  // Forgets tracks (all of them: a new segment starts); kept ones stay for GlobalBundle.
+  void ClearTracks();
   // Drops observations of keyframes far behind `newest` and tracks no longer needed (not alive
   // in the tracker and unseen by recent keyframes), bounding the memory of long drives.
   void Prune(keyframe_t newest, const std::vector<TrackedFeature>& alive);
 
  private:
+  void Keep(MapTrack&& track);  // into kept_tracks_ if keep_history and useful
+
   MapOptions options_;
   std::vector<Keyframe> keyframes_;
   std::unordered_map<track_t, MapTrack> tracks_;
+  std::vector<MapTrack> kept_tracks_;  // pruned or cleared tracks with points (keep_history)
 };
 
 }  // namespace epiloc

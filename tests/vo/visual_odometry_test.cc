@@ -4,7 +4,6 @@
 // trajectory error of monocular odometry; drift is that error in % of the distance driven.
 #include "epiloc/vo/visual_odometry.h"
 
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -78,12 +77,12 @@ Alignment AlignToTruth(const VoResult& result, const Drive& drive) {
 void Print(const char* what, const VoResult& result, const Alignment& a) {
   const VoSummary& s = result.summary;
   std::printf(
-      "%s: %lld/%lld frames posed, %lld keyframes, %zu segment(s), %.1f frames/s; aligned over "
-      "%lld poses, %.1f m: rms %.3f m (%.2f %%), max %.3f m (%.2f %%)\n",
+      "%s: %lld/%lld frames posed, %lld keyframes, %zu segment(s), %.1f frames/s (global BA "
+      "%.2f s); aligned over %lld poses, %.1f m: rms %.3f m (%.2f %%), max %.3f m (%.2f %%)\n",
       what, static_cast<long long>(s.posed), static_cast<long long>(s.frames),
       static_cast<long long>(s.keyframes), result.segments.size(), s.frames_per_s(),
-      static_cast<long long>(a.poses), a.distance_m, a.rms_m, a.rms_percent(), a.max_m,
-      a.max_percent());
+      s.global_ba_seconds, static_cast<long long>(a.poses), a.distance_m, a.rms_m, a.rms_percent(),
+      a.max_m, a.max_percent());
 }
 
 TEST(VisualOdometry, OptionsAndFramesAreChecked) {
@@ -114,7 +113,7 @@ TEST(VisualOdometry, OptionsAndFramesAreChecked) {
 
 // The synthetic dashcam drive: one segment, (nearly) every frame posed, and the shape after
 // Sim(3) alignment within 0.3 % of the distance at every pose. Measured: 259 of 259 frames posed,
-// rms 0.018 m (0.03 %), max 0.057 m (0.08 %) over 69 m; ~10 s of VO plus ~11 s to generate the
+// rms 0.022 m (0.03 %), max 0.066 m (0.09 %) over 69 m; ~7-10 s of VO plus ~11 s to generate the
 // world the first time.
 TEST(VisualOdometry, SyntheticDriveKeepsItsShape) {
   const Drive drive = LoadDrive(SharedVoWorld() + "/query");
@@ -145,9 +144,11 @@ TEST(VisualOdometry, SyntheticDriveKeepsItsShape) {
       1e-9);
 }
 
-// The shared KITTI drive, camera 1 (1242x375, 154 frames, 69 m): drift after Sim(3) alignment
-// against the target, <= 2 % of the distance at every pose. Measured: rms 0.732 m
-// (1.06 %), max 1.363 m (1.97 %, close to the target), 13-18 frames/s on 2 busy cores.
+// The shared KITTI drive, camera 1 (1242x375, 154 frames, 69 m): drift after Sim(3) alignment,
+// the target <= 2 % of the distance at every pose. Measured with the global BA and 1.5 px
+// inlier threshold: rms 0.639 m (0.92 %), max 1.146 m (1.66 %), 11-16 frames/s on 2 busy cores
+// (global BA 0.8 s). Part of it is the OXTS ground truth's own: its positions disagree with its
+// integrated velocities by 0.7 m after the same alignment.
 TEST(VisualOdometry, KittiCamera1Drift) {
   const fs::path raw =
       fs::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
@@ -165,8 +166,8 @@ TEST(VisualOdometry, KittiCamera1Drift) {
   EXPECT_EQ(result.summary.lost, 0);
   EXPECT_GE(result.summary.posed, result.summary.frames * 9 / 10);
   EXPECT_GT(a.distance_m, 50.0);
-  EXPECT_LE(a.max_percent(), 2.0);
-  EXPECT_LE(a.rms_percent(), 1.5);
+  EXPECT_LE(a.max_percent(), 1.8);
+  EXPECT_LE(a.rms_percent(), 1.1);
 }
 
 }  // namespace

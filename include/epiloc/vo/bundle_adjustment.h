@@ -36,6 +36,10 @@ struct BundleProblem {
   std::vector<bool> pose_fixed;  // same size as cam_from_world
   std::vector<Eigen::Vector3d> points_in_world;
   std::vector<BundleObservation> observations;
+  // Optionally one free pose of which only translation coordinate `scale_axis` (0..2) is held:
+  // with one fixed pose, the scale gauge of a monocular problem that leaves the rest free.
+  int scale_pose = -1;
+  int scale_axis = 0;
 };
 
 struct BundleSummary {
@@ -60,9 +64,9 @@ struct MotionOnlyResult {
   double rms_px = 0.0;  // over the inliers
 };
 MotionOnlyResult RefineMotionOnly(const Rigid3d& cam_from_world,
-                          const std::vector<Eigen::Vector3d>& points_in_world,
-                          const std::vector<Eigen::Vector2d>& x,
-                          double max_error_px,
-                          const BundleOptions& options);
+                                  const std::vector<Eigen::Vector3d>& points_in_world,
+                                  const std::vector<Eigen::Vector2d>& x,
+                                  double max_error_px,
+                                  const BundleOptions& options);
 
 }  // namespace epiloc

@@ -9,6 +9,9 @@
 // bundle adjustment (bundle_adjustment.h) over the last `ba_window` keyframes, the keyframes
 // outside the window that see the same points held fixed.
 //
+// Finish: a global bundle adjustment of each segment's keyframes and points (an offline survey
+// can afford it: one solve of the whole map after the last frame).
+//
 // Initialisation: a reference frame is kept until the median feature displacement reaches
 // `init_min_flow_px`; then an essential matrix (two_view.h) gives the second keyframe and the
 // first points, the frames in between are posed by PnP. The first segment's world frame is the
@@ -46,7 +49,7 @@ struct VoOptions {
   TwoViewOptions two_view;         // initialisation (focal_px is set from the camera)
   double init_min_flow_px = 15.0;  // median displacement since the reference before two-view
   int init_max_frames = 40;        // frames after which an unusable reference is replaced
-  double max_error_px = 2.5;       // inlier threshold of pose refinement, triangulation and BA
+  double max_error_px = 1.5;       // inlier threshold of pose refinement, triangulation and BA
   int min_inliers = 30;            // fewer 2D-3D inliers in a frame = tracking lost
   // A new keyframe when the baseline since the last one reaches this share of the median scene
   // depth,
@@ -59,8 +62,11 @@ struct VoOptions {
   double min_triangulation_parallax_deg = 1.0;  // a new point needs this ray angle
   int ba_window = 8;                            // keyframes adjusted by the local BA
   int ba_iterations = 8;                        // Levenberg-Marquardt iterations per local BA
-  double huber_px = 2.0;                        // robust loss scale of BA and refinement
-  int num_threads = 2;                          // Ceres threads; frames are read ahead on one more
+  // Iterations of the final BA over all keyframes and points of each segment (Finish); 0: none
+  // (then the map forgets what lies behind the local window).
+  int global_ba_iterations = 20;
+  double huber_px = 2.0;  // robust loss scale of BA and refinement
+  int num_threads = 2;    // Ceres threads; frames are read ahead on one more
 
   // Throws Error naming the first invalid field.
   void Check() const;
@@ -99,10 +105,11 @@ struct VoSummary {
   int64_t frames = 0;  // processed
   int64_t posed = 0;   // with a pose
   int64_t keyframes = 0;
-  int64_t lost = 0;           // tracking losses (segments - 1 when every loss re-initialised)
-  double mean_inliers = 0.0;  // per posed frame
-  double seconds = 0.0;       // wall-clock time of the processing (reading included)
-  double ba_seconds = 0.0;    // of it, in local bundle adjustment
+  int64_t lost = 0;                // tracking losses (segments - 1 when every loss re-initialised)
+  double mean_inliers = 0.0;       // per posed frame
+  double seconds = 0.0;            // wall-clock time of the processing (reading included)
+  double ba_seconds = 0.0;         // of it, in local and global bundle adjustment
+  double global_ba_seconds = 0.0;  // of that, in the global bundle adjustment (Finish)
   double frames_per_s() const { return seconds > 0.0 ? frames / seconds : 0.0; }
 };
 
@@ -124,6 +131,11 @@ class VisualOdometry {
   // model says. Throws Error for a wrong image size or type.
   VoFrameStatus ProcessFrame(frame_t frame, double timestamp_s, const cv::Mat& image);
 
+  // Ends the odometry (no more frames): a bundle adjustment of every keyframe and point of each
+  // segment (VoOptions::global_ba_iterations), the segment's first keyframe and scale held. Each
+  // segment is adjusted on its own; its join to the previous one stays where tracking put it.
+  void Finish();
+
   // The trajectory so far: non-keyframes are expressed relative to their reference keyframe, so
   // they follow the keyframes' final (bundle-adjusted) poses.
   VoResult Result() const;
@@ -133,7 +145,8 @@ class VisualOdometry {
   std::unique_ptr<Impl> impl_;
 };
 
-// Runs the odometry over every frame of `drive` (reading the next frame ahead on another thread).
+// Runs the odometry over every frame of `drive` (reading the next frame ahead on another thread),
+// then Finish().
 // `progress` gets (frames done, frames total). Throws Error for unreadable frames.
 VoResult RunVisualOdometry(const Drive& drive,
                            const VoOptions& options,
