@@ -38,6 +38,9 @@ int RunVo(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--ba-window", options.ba_window, "Keyframes in the local bundle adjustment")
       ->capture_default_str();
+  app.add_option("--global-ba-iterations", options.global_ba_iterations,
+                 "Iterations of the final bundle adjustment over all keyframes (0 = none)")
+      ->capture_default_str();
   app.add_option("--threads", options.num_threads, "Bundle-adjustment threads")
       ->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
@@ -51,10 +54,11 @@ int RunVo(int argc, char** argv) {
   const VoSummary& s = result.summary;
   std::printf(
       "%s: %lld of %lld frames posed, %lld keyframes, %zu segment(s), %lld tracking loss(es), "
-      "%.1f inliers per frame, %.1f frames/s (bundle adjustment %.1f s of %.1f s)\n",
+      "%.1f inliers per frame, %.1f frames/s (bundle adjustment %.1f s of %.1f s, the final "
+      "global one %.1f s)\n",
       out_path.c_str(), static_cast<long long>(s.posed), static_cast<long long>(s.frames),
       static_cast<long long>(s.keyframes), result.segments.size(), static_cast<long long>(s.lost),
-      s.mean_inliers, s.frames_per_s(), s.ba_seconds, s.seconds);
+      s.mean_inliers, s.frames_per_s(), s.ba_seconds, s.seconds, s.global_ba_seconds);
   return kExitOk;
 }
 
