@@ -83,11 +83,16 @@ GeorefTransform PaperTransform(const std::vector<AnchorPair>& anchors, int secon
 GeorefTransform Sim3Transform(const std::vector<AnchorPair>& anchors) {
   EPILOC_CHECK(anchors.size() >= 3, "sim3: needs at least three anchors, got {}", anchors.size());
   std::vector<Eigen::Vector3d> source, target;
+  std::vector<Eigen::Quaterniond> rotations;
   for (const AnchorPair& a : anchors) {
     source.push_back(a.vo_from_cam.translation);
     target.push_back(a.centre_in_enu);
+    if (a.enu_from_cam) rotations.push_back(AnchorRotation(a));
   }
-  const auto sim = FitSim3(source, target);
+  // With every anchor's orientation, the rotation fits those too (a nearly straight drive
+  // leaves the roll about it to the positions' noise otherwise); without, Umeyama alone.
+  const auto sim = rotations.size() == anchors.size() ? FitSim3(source, target, rotations)
+                                                       : FitSim3(source, target);
   if (!sim) {
     Throw(
         "sim3: the {} anchors lie on one line in the VO frame; the rotation about it is not "

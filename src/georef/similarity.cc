@@ -44,6 +44,50 @@ std::optional<Sim3d> FitSim3(const std::vector<Eigen::Vector3d>& source,
   return sim;
 }
 
+std::optional<Sim3d> FitSim3(const std::vector<Eigen::Vector3d>& source,
+                             const std::vector<Eigen::Vector3d>& target,
+                             const std::vector<Eigen::Quaterniond>& target_from_source) {
+  EPILOC_CHECK(source.size() == target.size() && source.size() == target_from_source.size(),
+               "FitSim3: {} source points, {} target points, {} rotations", source.size(),
+               target.size(), target_from_source.size());
+  const size_t n = source.size();
+  if (n < 2) return std::nullopt;
+  Eigen::Vector3d source_mean = Eigen::Vector3d::Zero(), target_mean = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    source_mean += source[i];
+    target_mean += target[i];
+  }
+  source_mean /= static_cast<double>(n);
+  target_mean /= static_cast<double>(n);
+  double source_spread = 0.0, target_spread = 0.0;
+  Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d rotations = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d x = source[i] - source_mean;
+    const Eigen::Vector3d y = target[i] - target_mean;
+    source_spread += x.squaredNorm();
+    target_spread += y.squaredNorm();
+    cross += y * x.transpose();
+    rotations += target_from_source[i].normalized().toRotationMatrix();
+  }
+  if (!(source_spread > 0.0) || !(target_spread > 0.0)) return std::nullopt;
+  // cross ~ s R sum(x x^T): divided by s * sum |x|^2 it weighs R's columns by the share of the
+  // spread along each source axis (total 1), as much as the mean rotation weighs each.
+  const double scale_guess = std::sqrt(target_spread / source_spread);
+  const Eigen::Matrix3d m =
+      cross / (scale_guess * source_spread) + rotations / static_cast<double>(n);
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  const Eigen::Matrix3d r = svd.matrixU() * d * svd.matrixV().transpose();
+  Sim3d sim;
+  sim.scale = (cross.cwiseProduct(r)).sum() / source_spread;  // sum y . R x / sum |x|^2
+  if (!(sim.scale > 0.0) || !std::isfinite(sim.scale)) return std::nullopt;
+  sim.rotation = Eigen::Quaterniond(r).normalized();
+  sim.translation = target_mean - sim.scale * (r * source_mean);
+  return sim;
+}
+
 FitResiduals Residuals(const Sim3d& sim,
                        const std::vector<Eigen::Vector3d>& source,
                        const std::vector<Eigen::Vector3d>& target) {

@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <cstdio>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "epiloc/geo/geodetic.h"
+#include "epiloc/georef/similarity.h"
 #include "test_util.h"
 
 namespace epiloc {
@@ -229,11 +231,46 @@ TEST(Georef, Sim3IsExactWithoutDriftAndNeedsThreeAnchorsOffALine) {
   std::vector<AnchorPair> anchors = AnchorsEvery(run, 50);
   ASSERT_EQ(anchors.size(), 3u);
   ExpectError([&] { Sim3Transform({anchors[0], anchors[1]}); }, {"at least three anchors, got 2"});
-  // Anchors on one line of the VO frame (a straight drive).
+  // Anchors on one line of the VO frame (a straight drive): their orientations fix the rotation
+  // about it; without orientations it is undetermined.
   for (size_t i = 0; i < anchors.size(); ++i) {
     anchors[i].vo_from_cam.translation = Eigen::Vector3d(0, 0, static_cast<double>(i));
   }
+  EXPECT_NO_THROW(Sim3Transform(anchors));
+  for (AnchorPair& a : anchors) a.enu_from_cam.reset();
   ExpectError([&] { Sim3Transform(anchors); }, {"lie on one line"});
+}
+
+// Nearly straight anchors (0.1 units off a 110-unit line) with 2 cm noise on their centres:
+// positions alone leave the roll about the line to the noise; the anchors' orientations pin it.
+TEST(Georef, Sim3UsesAnchorOrientationsOnANearlyStraightDrive) {
+  const SyntheticRun run = MakeRun(120, 0.0, 0.0);
+  std::vector<AnchorPair> anchors = AnchorsEvery(run, 10);
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  const Sim3d truth = [&] {
+    const GeorefTransform exact = Sim3Transform(anchors);
+    return exact.intervals[0];
+  }();
+  for (size_t i = 0; i < anchors.size(); ++i) {
+    // Rebuild the anchors on a line of the VO frame, consistent with `truth`.
+    const Eigen::Vector3d x(0.1 * std::sin(static_cast<double>(i)), 0.0, 10.0 * i);
+    anchors[i].vo_from_cam.translation = x;
+    anchors[i].centre_in_enu = truth * x + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    anchors[i].enu_from_cam = truth.rotation * anchors[i].vo_from_cam.rotation;
+  }
+  const GeorefTransform fit = Sim3Transform(anchors);
+  const double angle_deg = RotationDifferenceDeg(fit.intervals[0].rotation, truth.rotation);
+  EXPECT_LT(angle_deg, 0.1);
+  std::vector<Eigen::Vector3d> source, target;
+  for (const AnchorPair& a : anchors) {
+    source.push_back(a.vo_from_cam.translation);
+    target.push_back(a.centre_in_enu);
+  }
+  const auto positions_only = FitSim3(source, target);
+  ASSERT_TRUE(positions_only.has_value());
+  EXPECT_GT(RotationDifferenceDeg(positions_only->rotation, truth.rotation), 3 * angle_deg);
+  EXPECT_NEAR(fit.intervals[0].scale, truth.scale, 0.01 * truth.scale);
 }
 
 // Scale drifting by 50 % over 200 m and the VO frame turning by 3 degrees: piecewise

@@ -176,3 +176,31 @@ TEST(Similarity, ResidualsOfKnownOffsets) {
 
 }  // namespace
 }  // namespace epiloc
+
+namespace epiloc {
+namespace {
+
+// With the rotations given, exact data is recovered, also from points on one line (two pairs).
+TEST(Similarity, RotationsFixWhatCollinearPointsLeaveOpen) {
+  std::mt19937_64 rng(13);
+  const Sim3d truth = MakeSim(2.5, RandomRotation(rng), Eigen::Vector3d(-4.0, 7.0, 1.0));
+  std::vector<Eigen::Vector3d> source = RandomPoints(rng, 12, 20.0, Eigen::Vector3d(1, 2, 3));
+  std::vector<Eigen::Quaterniond> rotations(source.size(), truth.rotation);
+  auto fit = FitSim3(source, Apply(truth, source), rotations);
+  ASSERT_TRUE(fit.has_value());
+  EXPECT_NEAR(fit->scale, truth.scale, 1e-9);
+  EXPECT_LT(AngleRad(fit->rotation, truth.rotation), 1e-9);
+  EXPECT_LT((fit->translation - truth.translation).norm(), 1e-9);
+  const std::vector<Eigen::Vector3d> line = {{0, 0, 0}, {0, 0, 10}};
+  fit = FitSim3(line, Apply(truth, line), {truth.rotation, truth.rotation});
+  ASSERT_TRUE(fit.has_value());
+  EXPECT_NEAR(fit->scale, truth.scale, 1e-9);
+  EXPECT_LT(AngleRad(fit->rotation, truth.rotation), 1e-9);
+  EXPECT_FALSE(FitSim3({line[0]}, {line[0]}, {truth.rotation}).has_value());
+  EXPECT_FALSE(FitSim3({line[0], line[0]}, {line[0], line[1]}, {truth.rotation, truth.rotation})
+                   .has_value());  // no spread in the source
+  EXPECT_THROW(FitSim3(line, line, {truth.rotation}), Error);  // one rotation per pair
+}
+
+}  // namespace
+}  // namespace epiloc

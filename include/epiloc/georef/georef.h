@@ -13,8 +13,10 @@
 //    lateral parts of the VO chord do not bias the scale). X = s R (x - x_0) + X_0 (eq. 7, the
 //    rotation being the first anchor's, as the text describes), enu_from_cam = R R_vo.
 //    The second anchor is the last usable one by default (longest baseline).
-//  - sim3: the least-squares similarity over all usable anchor centres (Umeyama,
-//    Eigen::umeyama); enu_from_cam = R R_vo. Needs >= 3 anchors not on one line.
+//  - sim3: the least-squares similarity over all usable anchor centres (Umeyama); when every
+//    anchor has an orientation, the rotation fits the anchors' R_j R_vo_j^T too (similarity.h),
+//    so a nearly straight drive does not leave the roll about it to noise;
+//    enu_from_cam = R R_vo. Needs >= 3 anchors, not on one line unless oriented.
 //  - piecewise: between consecutive anchors k, k+1 a similarity that maps x_k to X_k and x_{k+1}
 //    to X_{k+1} exactly: scale |X_{k+1} - X_k| / |x_{k+1} - x_k|, rotation = the mean of the two
 //    anchors' rotations R_j R_vo_j^T (slerp at 1/2), corrected by the smallest rotation that

@@ -37,6 +37,17 @@ std::optional<Sim3d> FitSim3(const std::vector<Eigen::Vector3d>& source,
                              const std::vector<Eigen::Vector3d>& target,
                              double min_spread_ratio = 1e-3);
 
+// The same with the rotation also fitted to known rotations `target_from_source[i]` (e.g. anchor
+// orientation * VO orientation^-1): R maximises tr(R^T M), M = the point pairs' cross-covariance
+// normalised by scale and spread, plus the mean of the given rotations (Wahba's problem, solved
+// by SVD); then scale and translation by least squares given R. Positions determine R along
+// their spread, the rotations everywhere else: a nearly straight path no longer leaves the roll
+// about it to noise. Needs >= 2 pairs with distinct sources and one rotation per pair; nullopt
+// otherwise (or for a non-positive scale).
+std::optional<Sim3d> FitSim3(const std::vector<Eigen::Vector3d>& source,
+                             const std::vector<Eigen::Vector3d>& target,
+                             const std::vector<Eigen::Quaterniond>& target_from_source);
+
 // Root mean square and maximum of |target - sim * source| over the pairs.
 struct FitResiduals {
   double rms_m = 0.0;
