@@ -432,26 +432,24 @@ AnchorResult AnchorFrame(const cv::Mat& image,
     frame_top = SelectFeatures(frame, rows);
   }
   std::vector<int> tried_views;
+  // Where no photograph looks the same way near the pose (a survey driven the other way, a gap),
+  // the map is rendered instead.
   const auto attempt_at = [&](const Rigid3d& pose, bool guided) -> std::optional<Attempt> {
-    if (!photo_cache) {
+    std::vector<int> views;
+    if (photo_cache) views = photos->Nearest(pose);
+    if (views.empty()) {
       return TryPose(frame, camera, local_map, pose, guided ? options.guided_radius_px : 0.0,
                      guided ? std::min(options.render.splat_size_m, options.refine_splat_size_m)
                             : options.render.splat_size_m,
                      options);
-    }
-    std::vector<int> views = photos->Nearest(pose);
-    if (views.empty()) {
-      Attempt none;
-      none.message = fmt::format("no map photograph within {:.0f} m of the pose",
-                                 photos->options().max_view_distance_m);
-      return none;
     }
     if (!guided) {
       views.resize(1);
       if (std::count(tried_views.begin(), tried_views.end(), views[0]) > 0) return std::nullopt;
       tried_views.push_back(views[0]);
     }
-    return TryPhotos(frame_top, camera, &*photo_cache, views, guided ? &pose : nullptr, options, lift);
+    return TryPhotos(frame_top, camera, &*photo_cache, views, guided ? &pose : nullptr, options,
+                     lift);
   };
 
   Attempt best;

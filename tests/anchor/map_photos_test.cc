@@ -44,6 +44,24 @@ TEST(MapPhotos, AnchorsSyntheticQueryFramesToCentimetres) {
   EXPECT_LE(max_rotation, 0.1);
 }
 
+// Where no photograph is near (here: none within 1 cm), the map is rendered instead: the frames
+// still anchor, as without photographs.
+TEST(MapPhotos, FallsBackToRenderingsWhereNoPhotographIsNear) {
+  const std::string world = SharedSyntheticWorld();
+  AnchorInputs inputs;
+  inputs.cloud_path = world + "/lidar/map.ply";
+  inputs.map_origin = SynthOrigin();
+  inputs.drive_dir = world + "/query";
+  inputs.frames = {0, 8, 16};
+  inputs.photos_dir = world + "/survey";
+  inputs.photos.max_view_distance_m = 0.01;
+  AnchorOptions options;
+  options.prior.camera_height_m = 1.5;
+  const AnchorDriveResult result = AnchorDrive(inputs, options);
+  ASSERT_EQ(result.frames.size(), 3u);
+  EXPECT_EQ(result.num_ok, 3) << result.frames[0].message;
+}
+
 // Textured at a photograph's own pose, a rendering reproduces the photograph wherever the map
 // has geometry: every pixel's point projects back onto its own pixel.
 TEST(MapPhotos, TextureAtAPhotographsPoseReproducesIt) {
