@@ -56,11 +56,9 @@ TEST(AnchorKitti, DevelopmentScenarioWithMapPhotographs) {
   std::vector<double> position, rotation;
   for (const AnchorResult& r : result.frames) {
     if (r.status != AnchorStatus::kOk) continue;
-    const auto truth = drive.ground_truth->Interpolate(r.timestamp_s, drive.max_gap_s);
-    ASSERT_TRUE(truth && truth->enu_from_cam);
-    const Rigid3d true_pose = Rigid3d::FromMatrix(
-        enu.EnuFromLocalEnu(truth->position) * truth->enu_from_cam->toRotationMatrix(),
-        enu.ToEnu(truth->position));
+    const auto truth = TrueMapFromCam(drive, r.timestamp_s, enu);
+    ASSERT_TRUE(truth);
+    const Rigid3d& true_pose = *truth;
     position.push_back((r.map_from_cam.translation - true_pose.translation).head<2>().norm());
     rotation.push_back(RotationDifferenceDeg(r.map_from_cam.rotation, true_pose.rotation));
     std::printf("frame %3lld: %4d inliers, horizontal %.3f m, rotation %.3f deg, %.2f s\n",

@@ -11,16 +11,6 @@
 namespace epiloc {
 namespace {
 
-// The true map_from_cam of a drive's frame, in the ENU frame about `origin`.
-Rigid3d TruePose(const Drive& drive, const AnchorResult& r, const Geodetic& origin) {
-  const auto truth = drive.ground_truth->Interpolate(r.timestamp_s, drive.max_gap_s);
-  EXPECT_TRUE(truth && truth->enu_from_cam);
-  const EnuFrame enu(origin);
-  return Rigid3d::FromMatrix(
-      enu.EnuFromLocalEnu(truth->position) * truth->enu_from_cam->toRotationMatrix(),
-      enu.ToEnu(truth->position));
-}
-
 AnchorInputs SyntheticInputs(const std::string& world) {
   AnchorInputs inputs;
   inputs.cloud_path = world + "/lidar/map.ply";
@@ -52,7 +42,9 @@ TEST(Anchor, AnchorsSyntheticQueryFramesToCentimetres) {
   double max_position = 0, max_rotation = 0;
   for (const AnchorResult& r : result.frames) {
     ASSERT_EQ(r.status, AnchorStatus::kOk) << "frame " << r.frame << ": " << r.message;
-    const Rigid3d truth = TruePose(drive, r, inputs.map_origin);
+    const auto true_pose = TrueMapFromCam(drive, r.timestamp_s, EnuFrame(inputs.map_origin));
+    ASSERT_TRUE(true_pose);
+    const Rigid3d& truth = *true_pose;
     max_position = std::max(max_position, (r.map_from_cam.translation - truth.translation).norm());
     max_rotation =
         std::max(max_rotation, RotationDifferenceDeg(r.map_from_cam.rotation, truth.rotation));

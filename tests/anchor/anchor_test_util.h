@@ -2,15 +2,32 @@
 // processes (CTest runs every test in its own process), and pose comparisons.
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include <gtest/gtest.h>
 
+#include "epiloc/geo/geodetic.h"
+#include "epiloc/geo/rigid3.h"
+#include "epiloc/io/drive.h"
 #include "epiloc/synth/drive_gen.h"
 #include "synth_world_util.h"
 #include "test_util.h"
 
 namespace epiloc {
+
+// The ground-truth map_from_cam of `drive` at `timestamp_s` in the ENU frame `enu`; nullopt
+// without an oriented ground-truth sample there.
+inline std::optional<Rigid3d> TrueMapFromCam(const Drive& drive,
+                                             double timestamp_s,
+                                             const EnuFrame& enu) {
+  if (!drive.ground_truth) return std::nullopt;
+  const auto truth = drive.ground_truth->Interpolate(timestamp_s, drive.max_gap_s);
+  if (!truth || !truth->enu_from_cam) return std::nullopt;
+  return Rigid3d::FromMatrix(
+      enu.EnuFromLocalEnu(truth->position) * truth->enu_from_cam->toRotationMatrix(),
+      enu.ToEnu(truth->position));
+}
 
 // The world's ENU origin (WorldOptions default).
 inline Geodetic SynthOrigin() { return WorldOptions().origin; }

@@ -30,11 +30,9 @@ TEST(MapPhotos, AnchorsSyntheticQueryFramesToCentimetres) {
   double max_position = 0, max_rotation = 0;
   for (const AnchorResult& r : result.frames) {
     ASSERT_EQ(r.status, AnchorStatus::kOk) << "frame " << r.frame << ": " << r.message;
-    const auto truth = drive.ground_truth->Interpolate(r.timestamp_s, drive.max_gap_s);
-    ASSERT_TRUE(truth && truth->enu_from_cam);
-    const Rigid3d true_pose = Rigid3d::FromMatrix(
-        enu.EnuFromLocalEnu(truth->position) * truth->enu_from_cam->toRotationMatrix(),
-        enu.ToEnu(truth->position));
+    const auto truth = TrueMapFromCam(drive, r.timestamp_s, enu);
+    ASSERT_TRUE(truth);
+    const Rigid3d& true_pose = *truth;
     max_position =
         std::max(max_position, (r.map_from_cam.translation - true_pose.translation).norm());
     max_rotation =

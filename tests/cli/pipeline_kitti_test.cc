@@ -22,6 +22,7 @@
 #include "epiloc/localize/localizer.h"
 #include "epiloc/survey/build_db.h"
 #include "epiloc/vo/visual_odometry.h"
+#include "pipeline_test_util.h"
 #include "test_util.h"
 
 namespace epiloc {
@@ -86,12 +87,7 @@ TEST(PipelineKitti, MapAnchorsVoGeorefDatabaseLocalize) {
   AnchorOptions anchor_options;
   anchor_options.heading_error_deg = 5.0;
   const AnchorDriveResult anchored = AnchorDrive(anchor_inputs, anchor_options);
-  AnchorSet anchors;
-  anchors.path = "anchors";
-  for (const AnchorResult& a : anchored.frames) {
-    if (a.status != AnchorStatus::kOk) continue;
-    anchors.anchors.push_back({a.frame, a.timestamp_s, a.position, a.enu_from_cam, 0});
-  }
+  const AnchorSet anchors = OkAnchors(anchored);
   EXPECT_GE(anchors.anchors.size(), 28u);  // of 31; reached 31
 
   // VO and georeferencing.

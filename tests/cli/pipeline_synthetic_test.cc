@@ -11,6 +11,7 @@
 #include "epiloc/georef/georef.h"
 #include "epiloc/georef/trajectory_import.h"
 #include "epiloc/vo/visual_odometry.h"
+#include "pipeline_test_util.h"
 #include "test_util.h"
 
 namespace epiloc {
@@ -29,13 +30,7 @@ TEST(PipelineSynthetic, AnchorsVoGeoref) {
   options.prior.camera_height_m = 1.5;  // DriveOptions::Query()
   options.heading_error_deg = 5.0;
   const AnchorDriveResult anchored = AnchorDrive(inputs, options);
-  AnchorSet anchors;
-  anchors.path = "anchors";
-  for (const AnchorResult& a : anchored.frames) {
-    if (a.status == AnchorStatus::kOk) {
-      anchors.anchors.push_back({a.frame, a.timestamp_s, a.position, a.enu_from_cam, 0});
-    }
-  }
+  const AnchorSet anchors = OkAnchors(anchored);
   ASSERT_EQ(anchors.anchors.size(), anchored.frames.size());
 
   TempDir dir;
