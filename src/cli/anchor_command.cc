@@ -13,7 +13,7 @@
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
 #include "epiloc/core/progress.h"
-#include "epiloc/eval/result.h"
+#include "epiloc/io/result.h"
 
 namespace epiloc {
 namespace {
@@ -65,9 +65,9 @@ std::string Fixed(double value, int digits) {
 ResultTable ToResultTable(const AnchorDriveResult& anchors, const std::string& path) {
   ResultTable table;
   table.path = path;
-  table.extra_columns = {"anchor_status", "inliers",    "matches", "rmse_px",
-                         "prior_offset_m", "x_m",       "y_m",     "z_m",
-                         "candidate",     "rounds",     "seconds", "message"};
+  table.extra_columns = {"anchor_status",  "inliers", "matches", "rmse_px",
+                         "prior_offset_m", "x_m",     "y_m",     "z_m",
+                         "candidate",      "rounds",  "seconds", "message"};
   for (const AnchorResult& a : anchors.frames) {
     ResultRow row;
     row.frame = a.frame;
@@ -183,7 +183,8 @@ int RunAnchor(int argc, char** argv) {
   if (auto code = Parse(app, flags, argc, argv)) return *code;
 
   MapOriginInputs origin_inputs{inputs.cloud_path, std::nullopt, db_path};
-  if (!origin_text.empty()) origin_inputs.explicit_origin = ParseGeodetic(origin_text, "--cloud-origin");
+  if (!origin_text.empty())
+    origin_inputs.explicit_origin = ParseGeodetic(origin_text, "--cloud-origin");
   const MapOrigin origin = ResolveMapOrigin(origin_inputs);
   inputs.map_origin = origin.enu_origin;
   if (inputs.photos_dir.empty() && origin.sidecar && !origin.sidecar->source_dir.empty() &&

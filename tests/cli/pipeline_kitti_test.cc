@@ -14,11 +14,11 @@
 #include "epiloc/anchor/build_map.h"
 #include "epiloc/anchor/map_sidecar.h"
 #include "epiloc/eval/evaluate.h"
-#include "epiloc/eval/result.h"
 #include "epiloc/eval/statistics.h"
 #include "epiloc/georef/georef.h"
 #include "epiloc/georef/trajectory_import.h"
 #include "epiloc/io/kitti.h"
+#include "epiloc/io/result.h"
 #include "epiloc/localize/localizer.h"
 #include "epiloc/survey/build_db.h"
 #include "epiloc/vo/visual_odometry.h"
@@ -130,8 +130,8 @@ TEST(PipelineKitti, MapAnchorsVoGeorefDatabaseLocalize) {
   const Evaluation evaluation =
       Evaluate(run.results, *query_drive.ground_truth, RouteFromDatabase(db), EvaluateOptions());
   const MethodEvaluation& online = Method(evaluation, "online");
-  std::printf("query online along-track mean %.3f m, max %.3f m\n",
-              online.along_track.mean_abs, MaxAbs(online.along_track));
+  std::printf("query online along-track mean %.3f m, max %.3f m\n", online.along_track.mean_abs,
+              MaxAbs(online.along_track));
   // Target: mean <= 0.25 m; reached 0.094-0.098 m.
   EXPECT_EQ(online.evaluated(), 77);
   EXPECT_LE(online.along_track.mean_abs, 0.15);

@@ -17,14 +17,12 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "epiloc/core/error.h"
-#include "test_util.h"
-#include "epiloc/eval/result.h"
 #include "epiloc/geo/geodetic.h"
 #include "epiloc/io/drive.h"
+#include "epiloc/io/result.h"
+#include "test_util.h"
 
 namespace epiloc {
-
-
 
 // The origin of the synthetic tests.
 inline Geodetic TestOrigin() { return {49.0, 8.4, 100.0}; }

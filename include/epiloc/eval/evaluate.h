@@ -25,11 +25,11 @@
 
 #include <Eigen/Core>
 
-#include "epiloc/eval/result.h"
 #include "epiloc/eval/statistics.h"
 #include "epiloc/eval/truth.h"
 #include "epiloc/geo/geodetic.h"
 #include "epiloc/io/drive.h"
+#include "epiloc/io/result.h"
 
 namespace epiloc {
 

@@ -24,8 +24,8 @@
 #include <string>
 #include <vector>
 
-#include "epiloc/eval/result.h"
 #include "epiloc/geo/geodetic.h"
+#include "epiloc/io/result.h"
 
 namespace epiloc {
 

@@ -11,9 +11,9 @@
 #include <Eigen/Geometry>
 
 #include "epiloc/core/types.h"
-#include "epiloc/eval/result.h"
 #include "epiloc/geo/geodetic.h"
 #include "epiloc/io/drive.h"
+#include "epiloc/io/result.h"
 
 namespace epiloc {
 

@@ -38,11 +38,11 @@
 #include <Eigen/Geometry>
 
 #include "epiloc/core/types.h"
-#include "epiloc/eval/result.h"
 #include "epiloc/geo/geodetic.h"
 #include "epiloc/georef/anchors.h"
 #include "epiloc/georef/similarity.h"
 #include "epiloc/georef/trajectory_import.h"
+#include "epiloc/io/result.h"
 
 namespace epiloc {
 

@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "epiloc/core/progress.h"
-#include "epiloc/eval/result.h"
 #include "epiloc/feature/sift.h"
+#include "epiloc/io/result.h"
 #include "epiloc/localize/dtw.h"
 #include "epiloc/localize/pair_evaluator.h"
 #include "epiloc/localize/pose_refiner.h"
@@ -93,10 +93,10 @@ struct LocalizeRun {
   double seconds = 0.0;
   double frames_per_second = 0.0;
   int64_t num_pairs = 0;
-  bool refined = false;        // pnp rows were written (the database has structure)
-  int num_refined_ok = 0;      // frames with an accepted PnP pose
-  int num_refine_thin = 0;     // fell back to the epipolar estimate: too little structure
-  int num_refine_rejected = 0; // fell back: the PnP pose disagreed with the sequence
+  bool refined = false;         // pnp rows were written (the database has structure)
+  int num_refined_ok = 0;       // frames with an accepted PnP pose
+  int num_refine_thin = 0;      // fell back to the epipolar estimate: too little structure
+  int num_refine_rejected = 0;  // fell back: the PnP pose disagreed with the sequence
 };
 
 // Localizes every frame of the drive in `drive_dir` against the database. Throws Error for bad

@@ -1,8 +1,8 @@
-#include "epiloc/eval/result.h"
+#include "epiloc/io/result.h"
 
 #include <gtest/gtest.h>
 
-#include "eval_test_util.h"
+#include "eval/eval_test_util.h"
 
 namespace epiloc {
 namespace {

@@ -1,4 +1,4 @@
-#include "epiloc/eval/result.h"
+#include "epiloc/io/result.h"
 
 #include <algorithm>
 #include <cmath>
@@ -27,7 +27,7 @@ bool IsRequiredOrQuaternion(const std::string& column) {
 
 const std::vector<std::string>& KnownMethods() {
   static const std::vector<std::string> methods = {
-      "gps", "nearest", "dtw_fixed", "fit_fixed", "dtw_free", "fit_free", "online",
+      "gps", "nearest", "dtw_fixed", "fit_fixed", "dtw_free", "fit_free",  "online",
       "pnp", "anchor",  "vo",        "paper",     "sim3",     "piecewise", "colmap"};
   return methods;
 }
