@@ -4,9 +4,15 @@
 function(epiloc_module name)
   cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_LINK;PRIVATE_LINK" ${ARGN})
   add_library(epiloc_${name} STATIC ${ARG_SOURCES})
-  target_include_directories(epiloc_${name} PUBLIC ${EPILOC_SOURCE_DIR}/include)
+  add_library(epiloc::${name} ALIAS epiloc_${name})
+  target_include_directories(epiloc_${name} PUBLIC $<BUILD_INTERFACE:${EPILOC_SOURCE_DIR}/include>
+                                                   $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
   target_link_libraries(epiloc_${name} PUBLIC ${ARG_PUBLIC_LINK} PRIVATE ${ARG_PRIVATE_LINK})
-  set_target_properties(epiloc_${name} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+  # Installed as epiloc::<name> (epilocConfig.cmake); static, so other projects link it whole.
+  set_target_properties(epiloc_${name} PROPERTIES POSITION_INDEPENDENT_CODE ON EXPORT_NAME ${name})
+  install(TARGETS epiloc_${name} EXPORT epilocTargets
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 endfunction()
 
 # epiloc_test(MODULE NAME [LINK ...]): tests/<MODULE>/<NAME>_test.cc as one GoogleTest binary,

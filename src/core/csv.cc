@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <iostream>
 
 #include <fmt/format.h>
 
@@ -94,20 +95,41 @@ void CsvReader::RequireColumns(const std::vector<std::string>& names) const {
   }
 }
 
+bool CsvReader::TakeLine(const std::string& text) {
+  const std::string trimmed = Trim(text);
+  if (trimmed.empty() || trimmed[0] == '#') return false;
+  fields_ = SplitCsvLine(text);
+  if (!header_.empty() && fields_.size() != header_.size()) {
+    Throw("{}: {} fields, the header has {}", where(), fields_.size(), header_.size());
+  }
+  return true;
+}
+
 bool CsvReader::Next() {
   std::string text;
   while (std::getline(in_, text)) {
     ++line_;
-    const std::string trimmed = Trim(text);
-    if (trimmed.empty() || trimmed[0] == '#') continue;
-    fields_ = SplitCsvLine(text);
-    if (!header_.empty() && fields_.size() != header_.size()) {
-      Throw("{}: {} fields, the header has {}", where(), fields_.size(), header_.size());
-    }
-    return true;
+    if (TakeLine(text)) return true;
   }
   if (in_.bad()) Throw("{}: read error", path_);
   return false;
+}
+
+bool CsvReader::NextAppended() {
+  for (;;) {
+    in_.clear();  // an earlier end of file: the file may have grown since
+    const std::streampos start = in_.tellg();
+    std::string text;
+    if (!std::getline(in_, text) || in_.eof()) {
+      // Nothing, or a line still being written: read it again once it is complete.
+      if (in_.bad()) Throw("{}: read error", path_);
+      in_.clear();
+      in_.seekg(start);
+      return false;
+    }
+    ++line_;
+    if (TakeLine(text)) return true;
+  }
 }
 
 std::string CsvReader::where() const { return Where(path_, line_); }
@@ -155,27 +177,41 @@ std::string FormatFixed(double value, int decimals) {
 }
 
 CsvWriter::CsvWriter(const std::string& path, const std::vector<std::string>& header)
-    : path_(path), out_(path), num_columns_(header.size()) {
-  if (!out_) Throw("{}: cannot open for writing", path);
+    : path_(path == "-" ? "standard output" : path), num_columns_(header.size()) {
+  if (path == "-") {
+    out_ = &std::cout;
+  } else {
+    file_.open(path);
+    if (!file_) Throw("{}: cannot open for writing", path);
+    out_ = &file_;
+  }
   WriteRow(header);
 }
 
 void CsvWriter::WriteRow(const std::vector<std::string>& fields) {
   if (fields.size() != num_columns_) {
-    Throw("{}: internal error, row of {} fields for {} columns", path_, fields.size(), num_columns_);
+    Throw("{}: internal error, row of {} fields for {} columns", path_, fields.size(),
+          num_columns_);
   }
   for (size_t i = 0; i < fields.size(); ++i) {
-    if (i > 0) out_ << ',';
-    out_ << CsvEscape(fields[i]);
+    if (i > 0) *out_ << ',';
+    *out_ << CsvEscape(fields[i]);
   }
-  out_ << '\n';
+  *out_ << '\n';
+}
+
+void CsvWriter::Flush() {
+  if (!out_) return;
+  out_->flush();
+  if (!*out_) Throw("{}: write failed", path_);
 }
 
 void CsvWriter::Close() {
-  if (!out_.is_open()) return;
-  out_.flush();
-  const bool ok = static_cast<bool>(out_);
-  out_.close();
+  if (!out_) return;
+  out_->flush();
+  const bool ok = static_cast<bool>(*out_);
+  if (file_.is_open()) file_.close();
+  out_ = nullptr;
   if (!ok) Throw("{}: write failed", path_);
 }
 

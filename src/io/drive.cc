@@ -1,4 +1,5 @@
 #include "epiloc/io/drive.h"
+#include "epiloc/io/drive_follower.h"
 
 #include <filesystem>
 #include <fstream>
@@ -186,38 +187,62 @@ Json CameraJson(const Camera& camera, bool colour) {
 
 }  // namespace
 
-Drive LoadDrive(const std::string& dir) {
-  const std::string file = (std::filesystem::path(dir) / "drive.json").string();
+namespace {
+
+const std::set<std::string> kManifestKeys = {"epiloc_drive", "name",         "camera", "frames",
+                                             "gnss",         "ground_truth", "origin", "lidar",
+                                             "max_gap_s",    "time_offset_s"};
+
+// drive.json parsed, without reading the files it refers to.
+struct Manifest {
+  std::string file;
+  Json json;
+  Drive drive;  // dir, name, camera, colour, max_gap_s
+  std::optional<Geodetic> origin;
+  double time_offset_s = 0.0;
+};
+
+Manifest ReadManifest(const std::string& dir) {
+  Manifest m;
+  m.file = (std::filesystem::path(dir) / "drive.json").string();
+  const std::string& file = m.file;
   std::ifstream in(file);
   if (!in) Throw("{}: cannot open the drive manifest", file);
-  Json json;
   try {
-    json = Json::parse(in);
+    m.json = Json::parse(in);
   } catch (const Json::exception& e) {
     Throw("{}: malformed JSON: {}", file, e.what());
   }
-  const JsonObject manifest(json, file, "",
-                            {"epiloc_drive", "name", "camera", "frames", "gnss", "ground_truth",
-                             "origin", "lidar", "max_gap_s", "time_offset_s"});
+  const JsonObject manifest(m.json, file, "", kManifestKeys);
   const int64_t version = manifest.Integer("epiloc_drive");
   if (version != kDriveFormatVersion) {
     Throw("{}: drive format version {} is not supported (this epiloc reads {})", file, version,
           kDriveFormatVersion);
   }
-  Drive drive;
+  Drive& drive = m.drive;
   drive.dir = dir;
   drive.name = manifest.String("name");
   drive.camera = ReadCamera(manifest, file, &drive.colour);
   drive.max_gap_s = manifest.Number("max_gap_s", drive.max_gap_s);
   if (!(drive.max_gap_s > 0)) Throw("{}: 'max_gap_s' must be positive", file);
-  const double time_offset_s = manifest.Number("time_offset_s", 0.0);
-
-  std::optional<Geodetic> origin;
+  m.time_offset_s = manifest.Number("time_offset_s", 0.0);
   if (manifest.Has("origin")) {
     const JsonObject o(manifest.At("origin"), file, "origin", {"lat_deg", "lon_deg", "alt_m"});
-    origin = Geodetic{o.Number("lat_deg"), o.Number("lon_deg"), o.Number("alt_m", 0.0)};
-    CheckGeodetic(*origin, file + ": origin");
+    m.origin = Geodetic{o.Number("lat_deg"), o.Number("lon_deg"), o.Number("alt_m", 0.0)};
+    CheckGeodetic(*m.origin, file + ": origin");
   }
+  return m;
+}
+
+}  // namespace
+
+Drive LoadDrive(const std::string& dir) {
+  Manifest m = ReadManifest(dir);
+  const std::string& file = m.file;
+  const JsonObject manifest(m.json, file, "", kManifestKeys);
+  Drive drive = std::move(m.drive);
+  const std::optional<Geodetic>& origin = m.origin;
+  const double time_offset_s = m.time_offset_s;
 
   drive.frames = ReadFrames(manifest, &drive, file);
   // Reading the first frame checks that the images fit the calibration.
@@ -234,6 +259,23 @@ Drive LoadDrive(const std::string& dir) {
     drive.lidar = ReadLidarCsv(ResolvePath(dir, l.String("csv")), dir);
   }
   return drive;
+}
+
+Camera ReadCalibrationFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) Throw("{}: cannot open the calibration file", path);
+  Json json;
+  try {
+    json = Json::parse(in);
+  } catch (const Json::exception& e) {
+    Throw("{}: malformed JSON: {}", path, e.what());
+  }
+  if (!json.is_object()) Throw("{}: the calibration file must hold a JSON object", path);
+  Json camera_only = Json::object();
+  if (json.contains("camera")) camera_only["camera"] = json.at("camera");
+  const JsonObject manifest(camera_only, path, "", {"camera"});
+  bool colour = false;
+  return ReadCamera(manifest, path, &colour);
 }
 
 void WriteDrive(const Drive& drive, const std::string& dir) {
@@ -281,6 +323,114 @@ void WriteDrive(const Drive& drive, const std::string& dir) {
   out << manifest.dump(2) << '\n';
   out.close();
   if (!out) Throw("{}: write failed", file);
+}
+
+}  // namespace epiloc
+
+namespace epiloc {
+
+struct DriveFollower::Impl {
+  Drive manifest;
+  std::string frames_csv;
+  std::unique_ptr<FramesCsvRows> frames;
+  std::optional<Geodetic> origin;
+  double time_offset_s = 0.0;
+  std::string gnss_path;
+  PositionFormat gnss_format = PositionFormat::kCsv;
+  std::string gnss_date;
+  std::unique_ptr<PositionCsvRows> gnss_csv;
+  std::unique_ptr<NmeaParser> nmea;
+  std::ifstream nmea_in;
+  int64_t nmea_line = 0;
+  PositionTrack gnss;
+
+  void PollGnss();
+};
+
+DriveFollower::DriveFollower(const std::string& dir) : impl_(std::make_unique<Impl>()) {
+  Manifest m = ReadManifest(dir);
+  const JsonObject manifest(m.json, m.file, "", kManifestKeys);
+  const JsonObject f(manifest.At("frames"), m.file, "frames",
+                     {"csv", "folder", "video", "timestamps", "fps", "start_s"});
+  if (!f.Has("csv") || f.Has("video")) {
+    Throw("{}: following a growing drive needs its frames in a \"csv\" of image files", m.file);
+  }
+  impl_->frames_csv = ResolvePath(dir, f.String("csv"));
+  if (manifest.Has("gnss")) {
+    const JsonObject p(manifest.At("gnss"), m.file, "gnss", {"file", "format", "date"});
+    impl_->gnss_format = ParsePositionFormat(p.String("format", "csv"), m.file + ": gnss");
+    if (impl_->gnss_format == PositionFormat::kKittiOxts) {
+      Throw("{}: a kitti_oxts GNSS folder cannot be followed; use csv or nmea", m.file);
+    }
+    if (p.Has("date") && impl_->gnss_format != PositionFormat::kNmea) {
+      Throw("{}: 'gnss.date' applies to the nmea format only", m.file);
+    }
+    impl_->gnss_path = ResolvePath(dir, p.String("file"));
+    impl_->gnss_date = p.String("date", "");
+    impl_->gnss.source = impl_->gnss_path;
+  }
+  impl_->origin = m.origin;
+  impl_->time_offset_s = m.time_offset_s;
+  impl_->manifest = std::move(m.drive);
+}
+
+DriveFollower::~DriveFollower() = default;
+
+const Drive& DriveFollower::manifest() const { return impl_->manifest; }
+
+bool DriveFollower::has_gnss() const { return !impl_->gnss_path.empty(); }
+
+std::vector<FrameRecord> DriveFollower::PollFrames() {
+  std::vector<FrameRecord> out;
+  if (!impl_->frames) {
+    if (!FileExists(impl_->frames_csv)) return out;
+    impl_->frames = std::make_unique<FramesCsvRows>(impl_->frames_csv, impl_->manifest.dir, false);
+  }
+  FrameRecord record;
+  while (impl_->frames->Next(&record, true)) out.push_back(record);
+  return out;
+}
+
+void DriveFollower::Impl::PollGnss() {
+  if (gnss_path.empty() || !FileExists(gnss_path)) return;
+  PositionSample sample;
+  if (gnss_format == PositionFormat::kCsv) {
+    if (!gnss_csv) gnss_csv = std::make_unique<PositionCsvRows>(gnss_path, origin);
+    while (gnss_csv->Next(&sample, true)) gnss.samples.push_back(sample);
+    return;
+  }
+  if (!nmea) {
+    nmea = std::make_unique<NmeaParser>(gnss_path, gnss_date);
+    nmea_in.open(gnss_path);
+    if (!nmea_in) Throw("{}: cannot open file", gnss_path);
+  }
+  // Complete lines only; a sentence still being written is read again next time.
+  for (;;) {
+    nmea_in.clear();
+    const std::streampos start = nmea_in.tellg();
+    std::string line;
+    if (!std::getline(nmea_in, line) || nmea_in.eof()) {
+      nmea_in.clear();
+      nmea_in.seekg(start);
+      return;
+    }
+    nmea->Feed(line, ++nmea_line, &gnss);
+  }
+}
+
+std::optional<PositionSample> DriveFollower::GnssAt(double timestamp_s) {
+  impl_->PollGnss();
+  // The samples are kept in the file's clock; drive.json's time_offset_s maps it to the frames'.
+  const double t = timestamp_s - impl_->time_offset_s;
+  std::vector<PositionSample>& samples = impl_->gnss.samples;
+  // Samples older than the one before t - max_gap can no longer bracket a frame.
+  const double horizon = t - 2.0 * impl_->manifest.max_gap_s;
+  size_t drop = 0;
+  while (drop + 2 < samples.size() && samples[drop + 1].timestamp_s < horizon) ++drop;
+  if (drop > 0) samples.erase(samples.begin(), samples.begin() + static_cast<long>(drop));
+  std::optional<PositionSample> out = impl_->gnss.Interpolate(t, impl_->manifest.max_gap_s);
+  if (out) out->timestamp_s += impl_->time_offset_s;
+  return out;
 }
 
 }  // namespace epiloc

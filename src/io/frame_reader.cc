@@ -50,6 +50,16 @@ void CheckImageSize(const cv::Mat& image, const Camera& camera, const std::strin
   }
 }
 
+cv::Mat ReadImageFile(const std::string& path, const Camera& camera, bool colour) {
+  // IMREAD_UNCHANGED keeps 16-bit data, so the conversion below is ours and explicit.
+  cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
+  if (image.empty()) Throw("{}: cannot read image", path);
+  CheckImageSize(image, camera, path);
+  image = ConvertChannels(ToEightBit(image), colour);
+  if (image.empty()) Throw("{}: unsupported number of image channels", path);
+  return image;
+}
+
 FrameReader::FrameReader(const Drive& drive)
     : dir_(drive.dir),
       camera_(drive.camera),
@@ -64,17 +74,11 @@ cv::Mat FrameReader::Read(size_t index, bool colour) const {
   if (index >= frames_.size()) {
     Throw("frame index {} out of range (the drive has {} frames)", index, frames_.size());
   }
-  cv::Mat image;
-  std::string path;
   if (video_path_.empty()) {
-    path = ResolvePath(dir_, frames_[index].image);
-    // IMREAD_UNCHANGED keeps 16-bit data, so the conversion below is ours and explicit.
-    image = cv::imread(path, cv::IMREAD_UNCHANGED);
-    if (image.empty()) Throw("{}: cannot read image", path);
-  } else {
-    path = video_path_;
-    image = ReadVideoFrame(frames_[index].frame);
+    return ReadImageFile(ResolvePath(dir_, frames_[index].image), camera_, colour);
   }
+  const std::string& path = video_path_;
+  cv::Mat image = ReadVideoFrame(frames_[index].frame);
   CheckImageSize(image, camera_, path);
   image = ConvertChannels(ToEightBit(image), colour);
   if (image.empty()) Throw("{}: unsupported number of image channels", path);

@@ -47,38 +47,47 @@ void CheckFrameOrder(const std::vector<FrameRecord>& frames, const std::string& 
   }
 }
 
+FramesCsvRows::FramesCsvRows(const std::string& path, const std::string& dir, bool video)
+    : csv_(path), dir_(dir), video_(video) {
+  csv_.RequireColumns({"frame", "timestamp_s"});
+  if (!video) csv_.RequireColumns({"image"});
+}
+
+bool FramesCsvRows::Next(FrameRecord* out, bool appended) {
+  if (!(appended ? csv_.NextAppended() : csv_.Next())) return false;
+  FrameRecord record;
+  record.frame = csv_.GetInt("frame");
+  record.timestamp_s = csv_.GetDouble("timestamp_s");
+  if (csv_.HasColumn("image")) record.image = csv_.Get("image");
+  if (record.frame < 0) Throw("{}: frame number {} is negative", csv_.where(), record.frame);
+  const auto [it, inserted] = line_of_frame_.emplace(record.frame, csv_.line());
+  if (!inserted) {
+    Throw("{}: frame {} appears twice (first on line {})", csv_.where(), record.frame, it->second);
+  }
+  if (last_timestamp_s_ && record.timestamp_s < *last_timestamp_s_) {
+    Throw("{}: timestamp {} goes backwards (previous {})", csv_.where(),
+          FormatDouble(record.timestamp_s), FormatDouble(*last_timestamp_s_));
+  }
+  if (video_ && !record.image.empty()) {
+    Throw("{}: a video drive's frames have no image path", csv_.where());
+  }
+  if (!video_) {
+    if (record.image.empty()) Throw("{}: empty image path", csv_.where());
+    const std::string image_path = ResolvePath(dir_, record.image);
+    if (!FileExists(image_path)) Throw("{}: image file {} not found", csv_.where(), image_path);
+  }
+  last_timestamp_s_ = record.timestamp_s;
+  *out = std::move(record);
+  return true;
+}
+
 std::vector<FrameRecord> ReadFramesCsv(const std::string& path,
                                        const std::string& dir,
                                        bool video) {
-  CsvReader csv(path);
-  csv.RequireColumns({"frame", "timestamp_s"});
-  if (!video) csv.RequireColumns({"image"});
+  FramesCsvRows rows(path, dir, video);
   std::vector<FrameRecord> frames;
-  std::unordered_map<frame_t, int64_t> line_of_frame;
-  while (csv.Next()) {
-    FrameRecord record;
-    record.frame = csv.GetInt("frame");
-    record.timestamp_s = csv.GetDouble("timestamp_s");
-    if (csv.HasColumn("image")) record.image = csv.Get("image");
-    if (record.frame < 0) Throw("{}: frame number {} is negative", csv.where(), record.frame);
-    const auto [it, inserted] = line_of_frame.emplace(record.frame, csv.line());
-    if (!inserted) {
-      Throw("{}: frame {} appears twice (first on line {})", csv.where(), record.frame, it->second);
-    }
-    if (!frames.empty() && record.timestamp_s < frames.back().timestamp_s) {
-      Throw("{}: timestamp {} goes backwards (previous {})", csv.where(),
-            FormatDouble(record.timestamp_s), FormatDouble(frames.back().timestamp_s));
-    }
-    if (video && !record.image.empty()) {
-      Throw("{}: a video drive's frames have no image path", csv.where());
-    }
-    if (!video) {
-      if (record.image.empty()) Throw("{}: empty image path", csv.where());
-      const std::string image_path = ResolvePath(dir, record.image);
-      if (!FileExists(image_path)) Throw("{}: image file {} not found", csv.where(), image_path);
-    }
-    frames.push_back(record);
-  }
+  FrameRecord record;
+  while (rows.Next(&record)) frames.push_back(record);
   return frames;
 }
 

@@ -2,14 +2,18 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "epiloc/core/csv.h"
 #include "epiloc/geo/geodetic.h"
 #include "epiloc/io/drive.h"
+#include "epiloc/io/position_readers.h"
 
 namespace epiloc {
 
@@ -36,6 +40,51 @@ Eigen::Quaterniond CheckedQuaternion(
 // checked to exist relative to `dir`.
 std::vector<LidarScan> ReadLidarCsv(const std::string& path, const std::string& dir);
 void WriteLidarCsv(const std::vector<LidarScan>& scans, const std::string& path);
+
+// The rows of a frames CSV one at a time, with the checks of ReadFramesCsv (unique frame numbers,
+// times never decreasing, image files exist); `appended` reads a file still being written
+// (CsvReader::NextAppended).
+class FramesCsvRows {
+ public:
+  FramesCsvRows(const std::string& path, const std::string& dir, bool video);
+  bool Next(FrameRecord* record, bool appended = false);
+
+ private:
+  CsvReader csv_;
+  std::string dir_;
+  bool video_;
+  std::unordered_map<frame_t, int64_t> line_of_frame_;
+  std::optional<double> last_timestamp_s_;
+};
+
+// The rows of a position CSV one at a time, with the checks of ReadPositionCsv.
+class PositionCsvRows {
+ public:
+  PositionCsvRows(const std::string& path, const std::optional<Geodetic>& origin);
+  bool Next(PositionSample* sample, bool appended = false);
+
+ private:
+  CsvReader csv_;
+  bool geodetic_ = false;
+  std::optional<EnuFrame> enu_;
+  int num_q_ = 0;
+  std::optional<double> last_timestamp_s_;
+};
+
+// NMEA 0183 sentences one line at a time (ReadNmea's rules), appended to a track.
+class NmeaParser {
+ public:
+  NmeaParser(const std::string& path, const std::string& date);
+  void Feed(const std::string& line, int64_t line_number, PositionTrack* track);
+  const NmeaStats& stats() const { return stats_; }
+
+ private:
+  std::string path_;
+  NmeaStats stats_;
+  std::optional<int64_t> date_days_;
+  double last_altitude_m_ = 0.0;
+  bool last_from_gga_ = false;
+};
 
 // Frames from a CSV of frame,timestamp_s,image (image optional and empty when `video` is true).
 // Image files are checked to exist relative to `dir`.

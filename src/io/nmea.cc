@@ -99,87 +99,89 @@ int64_t ParseRmcDate(const std::string& text, const std::string& where) {
 
 }  // namespace
 
+NmeaParser::NmeaParser(const std::string& path, const std::string& date) : path_(path) {
+  if (!date.empty()) date_days_ = ParseDateDays(date, path + ": gnss \"date\"");
+}
+
+void NmeaParser::Feed(const std::string& line, int64_t line_number, PositionTrack* track) {
+  const std::string text = Trim(line);
+  if (text.empty()) return;
+  const std::string where = Where(path_, line_number);
+  const std::vector<std::string> f = ParseSentence(text, where);
+  const std::string& address = f[0];
+  const std::string type = address.size() == 5 ? address.substr(2) : "";
+  const bool gga = type == "GGA", rmc = type == "RMC";
+  if (!gga && !rmc) {
+    ++stats_.ignored;
+    return;
+  }
+  if (f.size() < 10) {
+    Throw("{}: {} sentence has {} fields, expected at least 10", where, address, f.size());
+  }
+  if (rmc && !f[9].empty()) date_days_ = ParseRmcDate(f[9], where);
+  if (gga && (f[6].empty() || ParseInt(f[6], where + " fix quality") == 0)) {
+    ++stats_.skipped_no_fix;
+    return;
+  }
+  if (rmc && f[2] != "A") {
+    if (f[2] != "V") Throw("{}: RMC status '{}' is not A or V", where, f[2]);
+    ++stats_.skipped_no_fix;
+    return;
+  }
+  if (!date_days_) {
+    Throw(
+        "{}: {} before any RMC sentence gives no date; add \"date\": \"YYYY-MM-DD\" to the "
+        "position entry in drive.json",
+        where, address);
+  }
+  const int lat_index = gga ? 2 : 3;
+  PositionSample sample;
+  sample.position.lat_deg = ParseAngle(f[lat_index], f[lat_index + 1], "N", "S", where);
+  sample.position.lon_deg = ParseAngle(f[lat_index + 2], f[lat_index + 3], "E", "W", where);
+  if (gga && !f[9].empty()) last_altitude_m_ = ParseDouble(f[9], where + " altitude");
+  sample.position.alt_m = last_altitude_m_;
+  CheckGeodetic(sample.position, where);
+  sample.timestamp_s =
+      static_cast<double>(*date_days_) * kSecondsPerDay + ParseTimeOfDay(f[1], where);
+  if (!track->samples.empty()) {
+    // A GGA (or an RMC without date) just after midnight still has the previous day's date, one
+    // just before midnight may follow an RMC of the new day.
+    const double previous = track->samples.back().timestamp_s;
+    const bool own_date = rmc && !f[9].empty();
+    if (!own_date && sample.timestamp_s < previous - kSecondsPerDay / 2) {
+      *date_days_ += 1;
+      sample.timestamp_s += kSecondsPerDay;
+    } else if (!own_date && sample.timestamp_s > previous + kSecondsPerDay / 2) {
+      *date_days_ -= 1;
+      sample.timestamp_s -= kSecondsPerDay;
+    }
+    PositionSample& last = track->samples.back();
+    if (std::abs(sample.timestamp_s - previous) < 1e-6) {
+      // Same epoch: one sample, the GGA position (with its altitude) preferred.
+      if (gga || !last_from_gga_) last = sample;
+      last_from_gga_ = last_from_gga_ || gga;
+      return;
+    }
+    if (sample.timestamp_s < previous) {
+      Throw("{}: time {} goes backwards (previous {})", where, FormatDouble(sample.timestamp_s),
+            FormatDouble(previous));
+    }
+  }
+  track->samples.push_back(sample);
+  last_from_gga_ = gga;
+}
+
 PositionTrack ReadNmea(const std::string& path, const std::string& date, NmeaStats* stats_out) {
   std::ifstream in(path);
   if (!in) Throw("{}: cannot open file", path);
   PositionTrack track;
   track.source = path;
-  NmeaStats stats;
-  std::optional<int64_t> date_days;
-  if (!date.empty()) date_days = ParseDateDays(date, path + ": gnss \"date\"");
-  double last_altitude_m = 0.0;
-  bool last_from_gga = false;
+  NmeaParser parser(path, date);
   std::string line;
   int64_t line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    const std::string text = Trim(line);
-    if (text.empty()) continue;
-    const std::string where = Where(path, line_number);
-    const std::vector<std::string> f = ParseSentence(text, where);
-    const std::string& address = f[0];
-    const std::string type = address.size() == 5 ? address.substr(2) : "";
-    const bool gga = type == "GGA", rmc = type == "RMC";
-    if (!gga && !rmc) {
-      ++stats.ignored;
-      continue;
-    }
-    if (f.size() < 10) {
-      Throw("{}: {} sentence has {} fields, expected at least 10", where, address, f.size());
-    }
-    if (rmc && !f[9].empty()) date_days = ParseRmcDate(f[9], where);
-    if (gga && (f[6].empty() || ParseInt(f[6], where + " fix quality") == 0)) {
-      ++stats.skipped_no_fix;
-      continue;
-    }
-    if (rmc && f[2] != "A") {
-      if (f[2] != "V") Throw("{}: RMC status '{}' is not A or V", where, f[2]);
-      ++stats.skipped_no_fix;
-      continue;
-    }
-    if (!date_days) {
-      Throw(
-          "{}: {} before any RMC sentence gives no date; add \"date\": \"YYYY-MM-DD\" to the "
-          "position entry in drive.json",
-          where, address);
-    }
-    const int lat_index = gga ? 2 : 3;
-    PositionSample sample;
-    sample.position.lat_deg = ParseAngle(f[lat_index], f[lat_index + 1], "N", "S", where);
-    sample.position.lon_deg = ParseAngle(f[lat_index + 2], f[lat_index + 3], "E", "W", where);
-    if (gga && !f[9].empty()) last_altitude_m = ParseDouble(f[9], where + " altitude");
-    sample.position.alt_m = last_altitude_m;
-    CheckGeodetic(sample.position, where);
-    sample.timestamp_s =
-        static_cast<double>(*date_days) * kSecondsPerDay + ParseTimeOfDay(f[1], where);
-    if (!track.samples.empty()) {
-      // A GGA (or an RMC without date) just after midnight still has the previous day's date,
-      // one just before midnight may follow an RMC of the new day.
-      const double previous = track.samples.back().timestamp_s;
-      const bool own_date = rmc && !f[9].empty();
-      if (!own_date && sample.timestamp_s < previous - kSecondsPerDay / 2) {
-        *date_days += 1;
-        sample.timestamp_s += kSecondsPerDay;
-      } else if (!own_date && sample.timestamp_s > previous + kSecondsPerDay / 2) {
-        *date_days -= 1;
-        sample.timestamp_s -= kSecondsPerDay;
-      }
-      PositionSample& last = track.samples.back();
-      if (std::abs(sample.timestamp_s - previous) < 1e-6) {
-        // Same epoch: one sample, the GGA position (with its altitude) preferred.
-        if (gga || !last_from_gga) last = sample;
-        last_from_gga = last_from_gga || gga;
-        continue;
-      }
-      if (sample.timestamp_s < previous) {
-        Throw("{}: time {} goes backwards (previous {})", where, FormatDouble(sample.timestamp_s),
-              FormatDouble(previous));
-      }
-    }
-    track.samples.push_back(sample);
-    last_from_gga = gga;
-  }
+  while (std::getline(in, line)) parser.Feed(line, ++line_number, &track);
   if (in.bad()) Throw("{}: read error", path);
+  NmeaStats stats = parser.stats();
   stats.positions = static_cast<int64_t>(track.samples.size());
   if (stats.skipped_no_fix > 0) {
     spdlog::info("{}: {} positions, {} sentences without a fix skipped", path, stats.positions,

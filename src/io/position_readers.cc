@@ -26,58 +26,64 @@ std::string PositionFormatName(PositionFormat format) {
   return "?";
 }
 
-PositionTrack ReadPositionCsv(const std::string& path, const std::optional<Geodetic>& origin) {
-  CsvReader csv(path);
-  csv.RequireColumns({"timestamp_s"});
-  const bool geodetic = csv.HasColumn("lat_deg") || csv.HasColumn("lon_deg");
-  std::optional<EnuFrame> enu;
-  if (geodetic) {
-    csv.RequireColumns({"lat_deg", "lon_deg", "alt_m"});
-  } else if (csv.HasColumn("x_m") || csv.HasColumn("y_m") || csv.HasColumn("z_m")) {
-    csv.RequireColumns({"x_m", "y_m", "z_m"});
+PositionCsvRows::PositionCsvRows(const std::string& path, const std::optional<Geodetic>& origin)
+    : csv_(path) {
+  csv_.RequireColumns({"timestamp_s"});
+  geodetic_ = csv_.HasColumn("lat_deg") || csv_.HasColumn("lon_deg");
+  if (geodetic_) {
+    csv_.RequireColumns({"lat_deg", "lon_deg", "alt_m"});
+  } else if (csv_.HasColumn("x_m") || csv_.HasColumn("y_m") || csv_.HasColumn("z_m")) {
+    csv_.RequireColumns({"x_m", "y_m", "z_m"});
     if (!origin) {
       Throw("{}: local x_m,y_m,z_m positions need an \"origin\" in drive.json", path);
     }
-    enu.emplace(*origin);
+    enu_.emplace(*origin);
   } else {
     Throw("{}: missing columns lat_deg,lon_deg,alt_m or x_m,y_m,z_m", path);
   }
-  const std::vector<std::string> q_columns = {"qw", "qx", "qy", "qz"};
-  int num_q = 0;
-  for (const auto& c : q_columns) num_q += csv.HasColumn(c) ? 1 : 0;
-  if (num_q != 0 && num_q != 4) Throw("{}: needs all of the columns qw,qx,qy,qz or none", path);
+  for (const char* c : {"qw", "qx", "qy", "qz"}) num_q_ += csv_.HasColumn(c) ? 1 : 0;
+  if (num_q_ != 0 && num_q_ != 4) Throw("{}: needs all of the columns qw,qx,qy,qz or none", path);
+}
 
+bool PositionCsvRows::Next(PositionSample* out, bool appended) {
+  if (!(appended ? csv_.NextAppended() : csv_.Next())) return false;
+  PositionSample sample;
+  sample.timestamp_s = csv_.GetDouble("timestamp_s");
+  if (geodetic_) {
+    sample.position = {csv_.GetDouble("lat_deg"), csv_.GetDouble("lon_deg"),
+                       csv_.GetDouble("alt_m")};
+    CheckGeodetic(sample.position, csv_.where());
+  } else {
+    sample.position = enu_->ToGeodetic(
+        Eigen::Vector3d(csv_.GetDouble("x_m"), csv_.GetDouble("y_m"), csv_.GetDouble("z_m")));
+  }
+  if (num_q_ == 4) {
+    int num_empty = 0;
+    for (const char* c : {"qw", "qx", "qy", "qz"}) num_empty += csv_.Get(c).empty() ? 1 : 0;
+    if (num_empty == 0) {
+      sample.enu_from_cam =
+          CheckedQuaternion(csv_.GetDouble("qw"), csv_.GetDouble("qx"), csv_.GetDouble("qy"),
+                            csv_.GetDouble("qz"), csv_.where());
+    } else if (num_empty != 4) {
+      Throw("{}: qw,qx,qy,qz must be all set or all empty", csv_.where());
+    }
+  }
+  if (csv_.HasColumn("frame") && !csv_.Get("frame").empty()) sample.frame = csv_.GetInt("frame");
+  if (last_timestamp_s_ && sample.timestamp_s <= *last_timestamp_s_) {
+    Throw("{}: timestamp {} is not after the previous one ({})", csv_.where(),
+          FormatDouble(sample.timestamp_s), FormatDouble(*last_timestamp_s_));
+  }
+  last_timestamp_s_ = sample.timestamp_s;
+  *out = std::move(sample);
+  return true;
+}
+
+PositionTrack ReadPositionCsv(const std::string& path, const std::optional<Geodetic>& origin) {
+  PositionCsvRows rows(path, origin);
   PositionTrack track;
   track.source = path;
-  while (csv.Next()) {
-    PositionSample sample;
-    sample.timestamp_s = csv.GetDouble("timestamp_s");
-    if (geodetic) {
-      sample.position = {csv.GetDouble("lat_deg"), csv.GetDouble("lon_deg"),
-                         csv.GetDouble("alt_m")};
-      CheckGeodetic(sample.position, csv.where());
-    } else {
-      sample.position = enu->ToGeodetic(
-          Eigen::Vector3d(csv.GetDouble("x_m"), csv.GetDouble("y_m"), csv.GetDouble("z_m")));
-    }
-    if (num_q == 4) {
-      int num_empty = 0;
-      for (const auto& c : q_columns) num_empty += csv.Get(c).empty() ? 1 : 0;
-      if (num_empty == 0) {
-        sample.enu_from_cam =
-            CheckedQuaternion(csv.GetDouble("qw"), csv.GetDouble("qx"), csv.GetDouble("qy"),
-                              csv.GetDouble("qz"), csv.where());
-      } else if (num_empty != 4) {
-        Throw("{}: qw,qx,qy,qz must be all set or all empty", csv.where());
-      }
-    }
-    if (csv.HasColumn("frame") && !csv.Get("frame").empty()) sample.frame = csv.GetInt("frame");
-    if (!track.samples.empty() && sample.timestamp_s <= track.samples.back().timestamp_s) {
-      Throw("{}: timestamp {} is not after the previous one ({})", csv.where(),
-            FormatDouble(sample.timestamp_s), FormatDouble(track.samples.back().timestamp_s));
-    }
-    track.samples.push_back(sample);
-  }
+  PositionSample sample;
+  while (rows.Next(&sample)) track.samples.push_back(sample);
   return track;
 }
 

@@ -148,38 +148,66 @@ ResultTable ReadResultCsv(const std::string& path) {
   return table;
 }
 
+namespace {
+
+std::vector<std::string> ResultHeader(const std::vector<std::string>& extra_columns,
+                                      bool with_orientation) {
+  std::vector<std::string> header = kRequiredColumns;
+  if (with_orientation) {
+    header.insert(header.end(), kQuaternionColumns.begin(), kQuaternionColumns.end());
+  }
+  header.insert(header.end(), extra_columns.begin(), extra_columns.end());
+  return header;
+}
+
+}  // namespace
+
+ResultCsvWriter::ResultCsvWriter(const std::string& path,
+                                 const std::vector<std::string>& extra_columns,
+                                 bool with_orientation)
+    : path_(path),
+      num_extra_(extra_columns.size()),
+      with_orientation_(with_orientation),
+      writer_(path, ResultHeader(extra_columns, with_orientation)) {}
+
+void ResultCsvWriter::Write(const ResultRow& row) {
+  EPILOC_CHECK(row.extra.size() == num_extra_,
+               "{}: row of frame {} has {} extra values for {} extra columns", path_, row.frame,
+               row.extra.size(), num_extra_);
+  EPILOC_CHECK(with_orientation_ || !row.enu_from_cam,
+               "{}: row of frame {} has an orientation but the file has no qw..qz columns", path_,
+               row.frame);
+  std::vector<std::string> fields = {
+      row.frame == kInvalidFrame ? "" : std::to_string(row.frame),
+      FormatDouble(row.timestamp_s),
+      row.has_position ? FormatDouble(row.position.lat_deg) : "",
+      row.has_position ? FormatDouble(row.position.lon_deg) : "",
+      row.has_position ? FormatDouble(row.position.alt_m) : "",
+      row.has_s ? FormatDouble(row.s_m) : "",
+      row.db_frame == kInvalidImage ? "" : std::to_string(row.db_frame),
+      row.method,
+      StatusName(row.status)};
+  if (with_orientation_) {
+    if (row.enu_from_cam) {
+      const auto& q = *row.enu_from_cam;
+      for (const double v : {q.w(), q.x(), q.y(), q.z()}) fields.push_back(FormatDouble(v));
+    } else {
+      fields.insert(fields.end(), 4, "");
+    }
+  }
+  fields.insert(fields.end(), row.extra.begin(), row.extra.end());
+  writer_.WriteRow(fields);
+}
+
+void ResultCsvWriter::Flush() { writer_.Flush(); }
+
+void ResultCsvWriter::Close() { writer_.Close(); }
+
 void WriteResultCsv(const ResultTable& table, const std::string& path) {
   const bool any_q = std::any_of(table.rows.begin(), table.rows.end(),
                                  [](const ResultRow& r) { return r.enu_from_cam.has_value(); });
-  std::vector<std::string> header = kRequiredColumns;
-  if (any_q) header.insert(header.end(), kQuaternionColumns.begin(), kQuaternionColumns.end());
-  header.insert(header.end(), table.extra_columns.begin(), table.extra_columns.end());
-  CsvWriter writer(path, header);
-  for (const auto& row : table.rows) {
-    EPILOC_CHECK(row.extra.size() == table.extra_columns.size(),
-                 "{}: row of frame {} has {} extra values for {} extra columns", path, row.frame,
-                 row.extra.size(), table.extra_columns.size());
-    std::vector<std::string> fields = {
-        row.frame == kInvalidFrame ? "" : std::to_string(row.frame),
-        FormatDouble(row.timestamp_s),
-        row.has_position ? FormatDouble(row.position.lat_deg) : "",
-        row.has_position ? FormatDouble(row.position.lon_deg) : "",
-        row.has_position ? FormatDouble(row.position.alt_m) : "",
-        row.has_s ? FormatDouble(row.s_m) : "",
-        row.db_frame == kInvalidImage ? "" : std::to_string(row.db_frame),
-        row.method,
-        StatusName(row.status)};
-    if (any_q) {
-      if (row.enu_from_cam) {
-        const auto& q = *row.enu_from_cam;
-        for (const double v : {q.w(), q.x(), q.y(), q.z()}) fields.push_back(FormatDouble(v));
-      } else {
-        fields.insert(fields.end(), 4, "");
-      }
-    }
-    fields.insert(fields.end(), row.extra.begin(), row.extra.end());
-    writer.WriteRow(fields);
-  }
+  ResultCsvWriter writer(path, table.extra_columns, any_q);
+  for (const auto& row : table.rows) writer.Write(row);
   writer.Close();
 }
 

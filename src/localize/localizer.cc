@@ -3,22 +3,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <deque>
-#include <future>
 #include <limits>
-#include <memory>
 #include <thread>
-#include <unordered_map>
 
 #include <spdlog/spdlog.h>
 
-#include "epiloc/camera/undistorter.h"
-#include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
-#include "epiloc/geo/route.h"
-#include "epiloc/io/drive.h"
-#include "epiloc/io/frame_reader.h"
 #include "epiloc/survey/retrieval_index.h"
+#include "localizer_internal.h"
 
 namespace epiloc {
 namespace {
@@ -31,25 +23,6 @@ constexpr int kMaxWindowExtensions = 3;
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
 }
-
-struct QueryFeatures {
-  FeatureSet features;
-  std::unique_ptr<DescriptorIndex> index;
-  Eigen::VectorXf global;  // retrieval descriptor (empty without a retrieval index)
-};
-
-// Everything the per-frame methods report, before it becomes result rows.
-struct FrameState {
-  std::vector<PairResult> pairs;
-  std::optional<RouteProjection> gps;
-  std::optional<Geodetic> gps_position;
-  bool off_route = false;
-  int nearest = -1;
-  int online_j = -1;
-  double online_s = 0.0;
-  bool online_ok = false;
-  std::optional<PoseRefinement> refined;  // with the refinement, for online-localized frames
-};
 
 // Database frames whose s lies in [from, to] (frames sorted by s).
 std::vector<int> FramesBetween(const std::vector<double>& db_s, double from, double to) {
@@ -83,6 +56,23 @@ int NearestPair(const std::vector<PairResult>& pairs) {
   return best < 0 ? -1 : pairs[best].db_index;
 }
 
+// Which side of the evaluated window the query lies on, from the signs of q_z: +1 if every valid
+// database camera is ahead (the query is behind the window), -1 if every one is behind, 0 if the
+// window brackets the query (or there is too little evidence to say).
+int OutsideWindow(const std::vector<PairResult>& pairs) {
+  int ahead = 0, behind = 0;
+  for (const PairResult& p : pairs) {
+    if (!p.valid) continue;
+    (p.signed_distance > 0 ? ahead : behind) += 1;
+  }
+  if (ahead + behind < 3) return 0;
+  if (behind == 0) return +1;
+  if (ahead == 0) return -1;
+  return 0;
+}
+
+}  // namespace
+
 // DTW costs of a row: d relative to twice the row's median valid d, capped at 1 (the cost of a
 // missing cell), so rows of different lateral offsets weigh alike and one wild d (an epipole
 // near the principal point from a bad model) cannot flatten the rest; failed pairs are missing.
@@ -103,28 +93,194 @@ std::vector<std::pair<int, double>> RowCosts(const std::vector<PairResult>& pair
   return row;
 }
 
-// Which side of the evaluated window the query lies on, from the signs of q_z: +1 if every valid
-// database camera is ahead (the query is behind the window), -1 if every one is behind, 0 if the
-// window brackets the query (or there is too little evidence to say).
-int OutsideWindow(const std::vector<PairResult>& pairs) {
-  int ahead = 0, behind = 0;
-  for (const PairResult& p : pairs) {
-    if (!p.valid) continue;
-    (p.signed_distance > 0 ? ahead : behind) += 1;
+std::string ModeName(LocalizeOptions::Mode mode) {
+  switch (mode) {
+    case LocalizeOptions::Mode::kFixed:
+      return "fixed";
+    case LocalizeOptions::Mode::kFree:
+      return "free";
+    case LocalizeOptions::Mode::kOnline:
+      return "online";
   }
-  if (ahead + behind < 3) return 0;
-  if (behind == 0) return +1;
-  if (ahead == 0) return -1;
-  return 0;
+  return "?";
 }
 
-// Sub-frame position around database frame j: the V-fit over valid pairs within the window;
-// falls back to s_j when the fit is not possible or lands outside the window.
-double SubFramePosition(const std::vector<PairResult>& pairs,
-                        const std::vector<double>& db_s,
-                        int j,
-                        const LocalizeOptions& options,
-                        VFitResult* fit_out) {
+LocalizeOptions::Mode ParseMode(const std::string& name) {
+  if (name == "fixed") return LocalizeOptions::Mode::kFixed;
+  if (name == "free") return LocalizeOptions::Mode::kFree;
+  if (name == "online") return LocalizeOptions::Mode::kOnline;
+  Throw("--mode '{}': expected fixed, free or online", name);
+}
+
+const char* TrackStatusName(TrackStatus status) {
+  switch (status) {
+    case TrackStatus::kOk:
+      return "ok";
+    case TrackStatus::kLost:
+      return "lost";
+    case TrackStatus::kOffRoute:
+      return "off_route";
+  }
+  return "?";
+}
+
+SiftOptions LocalizeOptions::QuerySiftDefaults() {
+  SiftOptions sift;
+  sift.upsampled_octave = false;
+  return sift;
+}
+
+void LocalizeOptions::Check() const {
+  EPILOC_CHECK(gps_window_m > 0, "localize: gps_window_m must be > 0");
+  EPILOC_CHECK(init_candidates >= 2, "localize: init_candidates must be >= 2");
+  EPILOC_CHECK(track_window_m > 0, "localize: track_window_m must be > 0");
+  EPILOC_CHECK(max_window_frames >= 4, "localize: max_window_frames must be >= 4, got {}",
+               max_window_frames);
+  EPILOC_CHECK(fit_window_m > 0, "localize: fit_window_m must be > 0");
+  EPILOC_CHECK(lost_after_frames >= 1, "localize: lost_after_frames must be >= 1");
+  EPILOC_CHECK(max_query_features >= 16, "localize: max_query_features must be >= 16");
+  EPILOC_CHECK(num_threads >= 0, "localize: num_threads must be >= 0");
+  sift.Check();
+  pairs.Check();
+  dtw.Check();
+  vfit.Check();
+  refine.Check();
+}
+
+namespace {
+
+Geodetic OriginOf(const Database& db, const std::string& path) {
+  const std::optional<Geodetic> origin = db.EnuOrigin();
+  EPILOC_CHECK(origin.has_value(), "{}: the database has no frames (no ENU origin)", path);
+  return *origin;
+}
+
+}  // namespace
+
+Localizer::Impl::Impl(const std::string& path, const Camera& camera, const LocalizeOptions& opts)
+    : db_path(path),
+      options(opts),
+      db(path, Database::Mode::kReadOnly),
+      enu(OriginOf(db, path)),
+      route(db.ReadRoute()),
+      undistorter(camera) {
+  options.Check();
+  db_frames = db.ReadFrames();
+  EPILOC_CHECK(db_frames.size() >= 2, "{}: the database holds {} frames, at least 2 needed", path,
+               db_frames.size());
+  std::stable_sort(db_frames.begin(), db_frames.end(),
+                   [](const DbFrame& a, const DbFrame& b) { return a.s_m < b.s_m; });
+  const int num_db = static_cast<int>(db_frames.size());
+  for (const DbFrame& f : db_frames) db_s.push_back(f.s_m);
+  // Windows scale with the database's frame spacing, so a sparse survey still gives the V-fit
+  // enough frames on both sides: at least 2.5 spacings, never less than the options say.
+  std::vector<double> spacing;
+  for (int j = 1; j < num_db; ++j) {
+    if (db_s[j] > db_s[j - 1]) spacing.push_back(db_s[j] - db_s[j - 1]);
+  }
+  double median_spacing = 0.0;
+  if (!spacing.empty()) {
+    std::nth_element(spacing.begin(), spacing.begin() + spacing.size() / 2, spacing.end());
+    median_spacing = spacing[spacing.size() / 2];
+  }
+  options.track_window_m = std::max(opts.track_window_m, 2.5 * median_spacing);
+  options.fit_window_m = std::max(opts.fit_window_m, 2.5 * median_spacing);
+  // A dense survey (a high frame rate, a slow survey vehicle) would put many frames into each
+  // window; evaluating frames closer than this adds time, not accuracy.
+  min_window_spacing_m = 2.0 * options.track_window_m / options.max_window_frames;
+  if (options.num_threads == 0) {
+    options.num_threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  }
+
+  const Camera& query_camera = undistorter.undistorted_camera();
+  PairOptions pair_options = options.pairs;
+  if (pair_options.min_db_feature_angle_rad == 0) {
+    // Database features finer than 3/4 of the finest the query extraction detects cannot match
+    // it (the margin allows for the scale change between the two viewpoints).
+    pair_options.min_db_feature_angle_rad =
+        0.75 * SmallestKeypointSizePx(options.sift, query_camera.width, query_camera.height) /
+        query_camera.fx;
+  }
+  refine = options.refine.enabled && db.NumPoints() > 0;
+  if (options.refine.enabled && !refine) {
+    spdlog::warn("{}: no triangulated 3-D points (run epiloc triangulate); no 6-DoF refinement",
+                 path);
+  }
+  pair_options.with_points = refine;
+  evaluator = std::make_unique<PairEvaluator>(db, db_frames, pair_options);
+
+  // Whole-route image retrieval places the vehicle without GPS and recovers a lost track.
+  if (HasCurrentRetrievalIndex(db)) {
+    retrieval_model.emplace();
+    retrieval_index = LoadRetrievalIndex(db, &*retrieval_model);
+    for (int j = 0; j < num_db; ++j) db_index_of_image[db_frames[j].image_id] = j;
+  } else if (!options.use_gps) {
+    Throw("{}: localizing without GPS needs the database's retrieval index (re-run build-db)",
+          path);
+  } else {
+    spdlog::warn("{}: no retrieval index; a lost track re-initialises from GPS only", path);
+  }
+}
+
+std::vector<int> Localizer::Impl::Window(double from_s_m, double to_s_m) const {
+  return Thinned(FramesBetween(db_s, from_s_m, to_s_m), db_s, min_window_spacing_m);
+}
+
+std::vector<PairResult> Localizer::Impl::Evaluate(const PreparedFrame& query,
+                                                  const std::vector<int>& indices) {
+  const Camera& camera = undistorter.undistorted_camera();
+  std::vector<PairResult> r =
+      options.pairs.window_matching
+          ? evaluator->EvaluateWindow(camera, query.features, indices, options.num_threads)
+          : evaluator->Evaluate(camera, query.features.keypoints, *query.index, indices,
+                                options.num_threads);
+  num_pairs += static_cast<int64_t>(r.size());
+  return r;
+}
+
+std::vector<PairResult> Localizer::Impl::Initialise(const PreparedFrame& query,
+                                                    const std::optional<RouteProjection>& gnss,
+                                                    bool* reinitialised) {
+  *reinitialised = false;
+  const int num_db = static_cast<int>(db_frames.size());
+  // A coarse sweep of the prior window, then the dense window around the best-supported frame.
+  // Candidates: the best retrieval matches (inside the GPS window when there is one), or an even
+  // sweep of the GPS window without a retrieval index.
+  std::vector<int> sweep;
+  if (retrieval_model && query.global.size() > 0) {
+    const int wanted = options.init_candidates;
+    const int searched = gnss ? std::min(num_db, 20 * wanted) : wanted;
+    for (const auto& [image_id, score] : retrieval_index.Search(query.global, searched)) {
+      const int j = db_index_of_image.at(image_id);
+      if (gnss && std::abs(db_s[j] - gnss->s_m) > options.gps_window_m) continue;
+      sweep.push_back(j);
+      if (static_cast<int>(sweep.size()) >= wanted) break;
+    }
+  }
+  if (sweep.empty() && gnss) {
+    const std::vector<int> window =
+        FramesBetween(db_s, gnss->s_m - options.gps_window_m, gnss->s_m + options.gps_window_m);
+    const size_t step = std::max<size_t>(1, window.size() / (2 * options.init_candidates));
+    for (size_t k = 0; k < window.size(); k += step) sweep.push_back(window[k]);
+  }
+  std::sort(sweep.begin(), sweep.end());
+  const std::vector<PairResult> coarse = Evaluate(query, sweep);
+  int best = -1;
+  for (size_t k = 0; k < coarse.size(); ++k) {
+    if (coarse[k].valid && (best < 0 || coarse[k].num_inliers > coarse[best].num_inliers)) {
+      best = static_cast<int>(k);
+    }
+  }
+  if (best < 0) return coarse;
+  const double s0 = db_s[coarse[best].db_index];
+  ++num_reinitialisations;
+  *reinitialised = true;
+  return Evaluate(query, Window(s0 - options.track_window_m, s0 + options.track_window_m));
+}
+
+double Localizer::Impl::SubFramePosition(const std::vector<PairResult>& pairs,
+                                         int j,
+                                         VFitResult* fit_out) const {
   std::vector<VFitPoint> points;
   for (const PairResult& p : pairs) {
     if (!p.valid || std::abs(db_s[p.db_index] - db_s[j]) > options.fit_window_m) continue;
@@ -161,498 +317,177 @@ double SubFramePosition(const std::vector<PairResult>& pairs,
   return db_s[j];
 }
 
-}  // namespace
-
-std::string ModeName(LocalizeOptions::Mode mode) {
-  switch (mode) {
-    case LocalizeOptions::Mode::kFixed:
-      return "fixed";
-    case LocalizeOptions::Mode::kFree:
-      return "free";
-    case LocalizeOptions::Mode::kOnline:
-      return "online";
+void Localizer::Impl::Refine(const PreparedFrame& query,
+                             FrameEstimate* estimate,
+                             std::vector<PairResult>& pairs) {
+  const Camera& camera = undistorter.undistorted_camera();
+  const double s = estimate->s_m;
+  estimate->refined = RefinePose(camera, query.features.keypoints, pairs, s, route, options.refine);
+  if (!options.refine.search_by_projection || estimate->refined->status != RefineStatus::kOk) {
+    return;
   }
-  return "?";
+  // The local map: the points seen by the database frames from local_map_behind_m behind to
+  // local_map_ahead_m ahead of the estimate (far points constrain the along-track position), the
+  // evaluated window's first.
+  std::vector<std::shared_ptr<const FrameMapPoints>> local_map;
+  for (const PairResult& p : pairs) local_map.push_back(evaluator->MapPoints(p.db_index));
+  for (const int j : FramesBetween(db_s, s - options.refine.local_map_behind_m,
+                                   s + options.refine.local_map_ahead_m)) {
+    local_map.push_back(evaluator->MapPoints(j));
+  }
+  const std::vector<float> root_sift =
+      ToRootSift(query.features.descriptors, query.features.size());
+  estimate->refined = RefineByProjection(camera, query.features.keypoints, root_sift, local_map,
+                                         *estimate->refined, s, route, options.refine);
 }
 
-LocalizeOptions::Mode ParseMode(const std::string& name) {
-  if (name == "fixed") return LocalizeOptions::Mode::kFixed;
-  if (name == "free") return LocalizeOptions::Mode::kFree;
-  if (name == "online") return LocalizeOptions::Mode::kOnline;
-  Throw("--mode '{}': expected fixed, free or online", name);
+Localizer::Localizer(const std::string& db_path,
+                     const Camera& query_camera,
+                     const LocalizeOptions& options)
+    : impl_(std::make_unique<Impl>(db_path, query_camera, options)) {}
+
+Localizer::~Localizer() = default;
+
+PreparedFrame Localizer::Prepare(const QueryFrame& frame) const {
+  const auto start = Clock::now();
+  const Impl& impl = *impl_;
+  PreparedFrame out;
+  out.frame = frame.frame;
+  out.timestamp_s = frame.timestamp_s;
+  out.gnss = frame.gnss;
+  out.arrival_s = frame.arrival_s;
+  EPILOC_CHECK(!frame.image.empty(), "frame {}: empty image", frame.frame);
+  SiftOptions sift = impl.options.sift;
+  sift.max_num_features = impl.options.max_query_features;
+  out.features = ExtractSift(impl.undistorter.Undistort(ToGrey8(frame.image)), sift);
+  if (!impl.options.pairs.window_matching) {
+    out.index =
+        std::make_shared<DescriptorIndex>(out.features.descriptors, impl.options.pairs.match);
+  }
+  if (impl.retrieval_model) out.global = impl.retrieval_model->Compute(out.features.descriptors);
+  out.extraction_seconds = Seconds(start);
+  return out;
 }
 
-SiftOptions LocalizeOptions::QuerySiftDefaults() {
-  SiftOptions sift;
-  sift.upsampled_octave = false;
-  return sift;
-}
-
-void LocalizeOptions::Check() const {
-  EPILOC_CHECK(gps_window_m > 0, "localize: gps_window_m must be > 0");
-  EPILOC_CHECK(init_candidates >= 2, "localize: init_candidates must be >= 2");
-  EPILOC_CHECK(track_window_m > 0, "localize: track_window_m must be > 0");
-  EPILOC_CHECK(max_window_frames >= 4, "localize: max_window_frames must be >= 4, got {}",
-               max_window_frames);
-  EPILOC_CHECK(fit_window_m > 0, "localize: fit_window_m must be > 0");
-  EPILOC_CHECK(lost_after_frames >= 1, "localize: lost_after_frames must be >= 1");
-  EPILOC_CHECK(max_query_features >= 16, "localize: max_query_features must be >= 16");
-  EPILOC_CHECK(num_threads >= 0, "localize: num_threads must be >= 0");
-  sift.Check();
-  pairs.Check();
-  dtw.Check();
-  vfit.Check();
-  refine.Check();
-}
-
-LocalizeRun Localize(const std::string& db_path,
-                     const std::string& drive_dir,
-                     const LocalizeOptions& options,
-                     const ProgressCallback& progress) {
-  options.Check();
-  const auto start_time = Clock::now();
-  Database db(db_path, Database::Mode::kReadOnly);
-  const std::optional<Geodetic> origin = db.EnuOrigin();
-  EPILOC_CHECK(origin.has_value(), "{}: the database has no frames (no ENU origin)", db_path);
-  const EnuFrame enu(*origin);
-  const Route route(db.ReadRoute());
-  std::vector<DbFrame> db_frames = db.ReadFrames();
-  EPILOC_CHECK(db_frames.size() >= 2, "{}: the database holds {} frames, at least 2 needed",
-               db_path, db_frames.size());
-  std::stable_sort(db_frames.begin(), db_frames.end(),
-                   [](const DbFrame& a, const DbFrame& b) { return a.s_m < b.s_m; });
-  const int num_db = static_cast<int>(db_frames.size());
-  std::vector<double> db_s(num_db);
-  LocalizeRun run;
-  for (int j = 0; j < num_db; ++j) {
-    db_s[j] = db_frames[j].s_m;
-    run.db_frame_numbers.push_back(db_frames[j].frame);
+FrameEstimate Localizer::Track(const PreparedFrame& query) {
+  const auto start = Clock::now();
+  Impl& impl = *impl_;
+  const LocalizeOptions& options = impl.options;
+  FrameEstimate est;
+  est.frame = query.frame;
+  est.timestamp_s = query.timestamp_s;
+  est.extraction_seconds = query.extraction_seconds;
+  bool off_route = false;
+  if (options.use_gps && query.gnss) {
+    est.gnss = query.gnss;
+    est.gnss_on_route = impl.route.Project(impl.enu.ToEnu(*query.gnss));
+    off_route = std::abs(est.gnss_on_route->cross_track_m) > options.off_route_m;
   }
-  run.db_s_m = db_s;
-  // Windows scale with the database's frame spacing, so a sparse survey still gives the V-fit
-  // enough frames on both sides: at least 2.5 spacings, never less than the options say.
-  std::vector<double> spacing;
-  for (int j = 1; j < num_db; ++j) {
-    if (db_s[j] > db_s[j - 1]) spacing.push_back(db_s[j] - db_s[j - 1]);
-  }
-  double median_spacing = 0.0;
-  if (!spacing.empty()) {
-    std::nth_element(spacing.begin(), spacing.begin() + spacing.size() / 2, spacing.end());
-    median_spacing = spacing[spacing.size() / 2];
-  }
-  LocalizeOptions effective = options;
-  effective.track_window_m = std::max(options.track_window_m, 2.5 * median_spacing);
-  effective.fit_window_m = std::max(options.fit_window_m, 2.5 * median_spacing);
-  // A dense survey (a high frame rate, a slow survey vehicle) would put many frames into each
-  // window; evaluating frames closer than this adds time, not accuracy.
-  const double min_window_spacing_m = 2.0 * effective.track_window_m / options.max_window_frames;
-  const Drive drive = LoadDrive(drive_dir);
-  const Undistorter undistorter(drive.camera);
-  const Camera& query_camera = undistorter.undistorted_camera();
-  PairOptions pair_options = options.pairs;
-  if (pair_options.min_db_feature_angle_rad == 0) {
-    // Database features finer than 3/4 of the finest the query extraction detects cannot match
-    // it (the margin allows for the scale change between the two viewpoints).
-    pair_options.min_db_feature_angle_rad =
-        0.75 * SmallestKeypointSizePx(options.sift, query_camera.width, query_camera.height) /
-        query_camera.fx;
-  }
-  const bool refine = options.refine.enabled && db.NumPoints() > 0;
-  if (options.refine.enabled && !refine) {
-    spdlog::warn("{}: no triangulated 3-D points (run epiloc triangulate); no 6-DoF refinement",
-                 db_path);
-  }
-  pair_options.with_points = refine;
-  run.refined = refine;
-  PairEvaluator evaluator(db, db_frames, pair_options);
+  const double t = query.timestamp_s;
+  const int64_t pairs_before = impl.num_pairs;
 
-  // Whole-route image retrieval places the drive without GPS and recovers a lost track.
-  std::optional<GlobalDescriptorModel> retrieval_model;
-  GlobalIndex retrieval_index;
-  std::unordered_map<int64_t, int> db_index_of_image;
-  if (HasCurrentRetrievalIndex(db)) {
-    retrieval_model.emplace();
-    retrieval_index = LoadRetrievalIndex(db, &*retrieval_model);
-    for (int j = 0; j < num_db; ++j) db_index_of_image[db_frames[j].image_id] = j;
-  } else if (!options.use_gps) {
-    Throw("{}: localizing without GPS needs the database's retrieval index (re-run build-db)",
-          db_path);
-  } else {
-    spdlog::warn("{}: no retrieval index; a lost track re-initialises from GPS only", db_path);
-  }
-
-  const FrameReader reader(drive);
-  const int num_frames = static_cast<int>(drive.frames.size());
-  EPILOC_CHECK(num_frames >= 1, "{}: the drive has no frames", drive.dir);
-  const int num_threads = options.num_threads > 0
-                              ? options.num_threads
-                              : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-
-  std::vector<FrameState> states(num_frames);
-  if (options.use_gps) {
-    EPILOC_CHECK(!drive.gnss.samples.empty(),
-                 "{}: the drive has no GNSS positions (use --no-gps to localize without)",
-                 drive.dir);
-    const FramePositions gps = PositionFrames(drive, drive.gnss);
-    for (int i = 0; i < num_frames; ++i) {
-      if (!gps.per_frame[i]) continue;
-      states[i].gps_position = gps.per_frame[i]->position;
-      states[i].gps = route.Project(enu.ToEnu(states[i].gps_position.value()));
-      states[i].off_route = std::abs(states[i].gps->cross_track_m) > options.off_route_m;
-    }
-  }
-
-  // Feature extraction runs ahead of the tracker on a second thread.
-  auto extract = [&](int i) {
-    QueryFeatures q;
-    SiftOptions sift = options.sift;
-    sift.max_num_features = options.max_query_features;
-    q.features = ExtractSift(undistorter.Undistort(reader.ReadGrey(i)), sift);
-    if (!options.pairs.window_matching) {
-      q.index = std::make_unique<DescriptorIndex>(q.features.descriptors, options.pairs.match);
-    }
-    if (retrieval_model) q.global = retrieval_model->Compute(q.features.descriptors);
-    return q;
-  };
-  std::deque<std::future<QueryFeatures>> ahead;
-  const int prefetch = std::max(1, num_threads);
-  for (int i = 0; i < std::min(prefetch, num_frames); ++i) {
-    ahead.push_back(std::async(std::launch::async, extract, i));
-  }
-
-  SparseCostMatrix costs(num_frames, num_db);
-  std::unique_ptr<OnlineDtw> online;
-  bool tracking = false;
-  int misses = 0;
-  double s_est = 0.0, velocity = 0.0, t_est = 0.0;
-  bool have_estimate = false;
-  for (int i = 0; i < num_frames; ++i) {
-    QueryFeatures query = ahead.front().get();
-    ahead.pop_front();
-    if (i + prefetch < num_frames) {
-      ahead.push_back(std::async(std::launch::async, extract, i + prefetch));
-    }
-    const auto frame_start = Clock::now();
-    FrameState& state = states[i];
-    const double t = drive.frames[i].timestamp_s;
-    FrameDiagnostics diag;
-    int diag_extensions = 0;
-    diag.frame = drive.frames[i].frame;
-    diag.timestamp_s = t;
-    if (state.gps) diag.gps_s_m = state.gps->s_m;
-
-    auto evaluate = [&](const std::vector<int>& indices) {
-      std::vector<PairResult> r =
-          options.pairs.window_matching
-              ? evaluator.EvaluateWindow(query_camera, query.features, indices, num_threads)
-              : evaluator.Evaluate(query_camera, query.features.keypoints, *query.index, indices,
-                                   num_threads);
-      run.num_pairs += static_cast<int64_t>(r.size());
-      return r;
-    };
-
-    if (!state.off_route) {
-      if (!tracking) {
-        // (Re)initialise: a coarse sweep of the prior window, then the dense window around the
-        // best-supported frame.
-        // Candidates: the best retrieval matches (inside the GPS window when there is one), or
-        // an even sweep of the GPS window without a retrieval index.
-        std::vector<int> sweep;
-        if (retrieval_model) {
-          const int wanted = options.init_candidates;
-          const int searched = state.gps ? std::min(num_db, 20 * wanted) : wanted;
-          for (const auto& [image_id, score] : retrieval_index.Search(query.global, searched)) {
-            const int j = db_index_of_image.at(image_id);
-            if (state.gps && std::abs(db_s[j] - state.gps->s_m) > options.gps_window_m) continue;
-            sweep.push_back(j);
-            if (static_cast<int>(sweep.size()) >= wanted) break;
-          }
-        }
-        if (sweep.empty() && state.gps) {
-          const std::vector<int> window = FramesBetween(db_s, state.gps->s_m - options.gps_window_m,
-                                                        state.gps->s_m + options.gps_window_m);
-          const size_t step = std::max<size_t>(1, window.size() / (2 * options.init_candidates));
-          for (size_t k = 0; k < window.size(); k += step) sweep.push_back(window[k]);
-        }
-        std::sort(sweep.begin(), sweep.end());
-        const std::vector<PairResult> coarse = evaluate(sweep);
-        int best = -1;
-        for (const PairResult& p : coarse) {
-          if (p.valid && (best < 0 || p.num_inliers > coarse[best].num_inliers)) {
-            best = static_cast<int>(&p - coarse.data());
-          }
-        }
-        if (best >= 0) {
-          const double s0 = db_s[coarse[best].db_index];
-          state.pairs = evaluate(
-              Thinned(FramesBetween(db_s, s0 - effective.track_window_m,
-                                    s0 + effective.track_window_m),
-                      db_s, min_window_spacing_m));
-          diag.reinitialised = true;
-          ++run.num_reinitialisations;
-        } else {
-          state.pairs = coarse;
-        }
-      } else {
-        const double predicted = s_est + velocity * (t - t_est);
-        const double margin = effective.track_window_m + 0.5 * std::abs(velocity * (t - t_est));
-        state.pairs = evaluate(Thinned(FramesBetween(db_s, predicted - margin, predicted + margin),
-                                       db_s, min_window_spacing_m));
-      }
-    }
-
-    // The window must bracket the vehicle (database cameras behind and ahead of it); if every
-    // camera is on one side, extend the window on the other, a few times at most.
-    for (int extension = 0; extension < kMaxWindowExtensions && !state.pairs.empty(); ++extension) {
-      const int side = OutsideWindow(state.pairs);
-      if (side == 0) break;
-      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-      for (const PairResult& p : state.pairs) {
-        lo = std::min(lo, db_s[p.db_index]);
-        hi = std::max(hi, db_s[p.db_index]);
-      }
-      const std::vector<int> more = Thinned(
-          side > 0 ? FramesBetween(db_s, lo - effective.track_window_m, lo - 1e-6)
-                   : FramesBetween(db_s, hi + 1e-6, hi + effective.track_window_m),
-          db_s, min_window_spacing_m);
-      if (more.empty()) break;  // at an end of the route
-      std::vector<PairResult> extra = evaluate(more);
-      state.pairs.insert(state.pairs.end(), extra.begin(), extra.end());
-      ++diag_extensions;
-    }
-
-    const std::vector<std::pair<int, double>> row = RowCosts(state.pairs);
-    for (const auto& [j, cost] : row) costs.Set(i, j, cost);
-    state.nearest = NearestPair(state.pairs);
-
-    if (state.nearest >= 0) {
-      if (!tracking || !online) {
-        if (!online) {
-          online = std::make_unique<OnlineDtw>(num_db, state.nearest, options.dtw);
-        } else {
-          online->Reset(state.nearest);
-        }
-      }
-      state.online_j = online->Push(row);
-      VFitResult fit;
-      const double s = SubFramePosition(state.pairs, db_s, state.online_j, effective, &fit);
-      diag.online_fit = fit;
-      state.online_s = s;
-      state.online_ok = true;
-      if (refine) {
-        state.refined = RefinePose(query_camera, query.features.keypoints, state.pairs, s, route,
-                                   options.refine);
-        if (options.refine.search_by_projection && state.refined->status == RefineStatus::kOk) {
-          // The local map: the points seen by the database frames from local_map_behind_m behind
-          // to local_map_ahead_m ahead of the estimate (far points constrain the along-track
-          // position), the evaluated window's first.
-          std::vector<std::shared_ptr<const FrameMapPoints>> local_map;
-          for (const PairResult& p : state.pairs) local_map.push_back(evaluator.MapPoints(p.db_index));
-          for (const int j : FramesBetween(db_s, s - options.refine.local_map_behind_m,
-                                           s + options.refine.local_map_ahead_m)) {
-            local_map.push_back(evaluator.MapPoints(j));
-          }
-          const std::vector<float> root_sift =
-              ToRootSift(query.features.descriptors, query.features.size());
-          state.refined = RefineByProjection(query_camera, query.features.keypoints, root_sift,
-                                             local_map, *state.refined, s, route, options.refine);
-        }
-      }
-      if (have_estimate && t > t_est) {
-        const double v = (s - s_est) / (t - t_est);
-        velocity = tracking ? 0.5 * velocity + 0.5 * v : 0.0;
-      }
-      s_est = s;
-      t_est = t;
-      have_estimate = true;
-      tracking = true;
-      misses = 0;
-      ++run.num_localized_online;
+  std::vector<PairResult> pairs;
+  if (!off_route) {
+    if (!impl.tracking) {
+      pairs = impl.Initialise(query, est.gnss_on_route, &est.reinitialised);
     } else {
-      if (online) online->Push(row);
-      if (++misses >= options.lost_after_frames) tracking = false;
+      const double predicted = impl.s_est + impl.velocity * (t - impl.t_est);
+      const double margin =
+          options.track_window_m + 0.5 * std::abs(impl.velocity * (t - impl.t_est));
+      pairs = impl.Evaluate(query, impl.Window(predicted - margin, predicted + margin));
     }
-    // The point matches served the refinement; dropping them keeps memory flat in drive length.
-    for (PairResult& p : state.pairs) {
-      p.point_matches.clear();
-      p.point_matches.shrink_to_fit();
-    }
-    diag.pairs = state.pairs;
-    diag.window_extensions = diag_extensions;
-    diag.online_db_index = state.online_j;
-    diag.seconds = Seconds(frame_start);
-    run.diagnostics.push_back(std::move(diag));
-    if (progress) progress(i + 1, num_frames);
   }
 
-  // Result rows.
-  run.results.extra_columns = {"fit_residual_m", "inliers", "refine", "cross_track_m",
-                               "heading_deg", "reprojection_rmse_px"};
-  auto add_row = [&](int i, const std::string& method, ResultStatus status, std::optional<double> s,
-                     int db_index, std::optional<Geodetic> position, double residual_m,
-                     int inliers) -> ResultRow& {
-    ResultRow r;
-    r.frame = drive.frames[i].frame;
-    r.timestamp_s = drive.frames[i].timestamp_s;
-    r.method = method;
-    r.status = status;
-    if (status == ResultStatus::kOk) {
-      r.has_position = true;
-      r.position = position ? *position : enu.ToGeodetic(route.PointAt(*s));
-      if (s) {
-        r.has_s = true;
-        r.s_m = *s;
-      }
+  // The window must bracket the vehicle (database cameras behind and ahead of it); if every
+  // camera is on one side, extend the window on the other, a few times at most.
+  for (int extension = 0; extension < kMaxWindowExtensions && !pairs.empty(); ++extension) {
+    const int side = OutsideWindow(pairs);
+    if (side == 0) break;
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const PairResult& p : pairs) {
+      lo = std::min(lo, impl.db_s[p.db_index]);
+      hi = std::max(hi, impl.db_s[p.db_index]);
     }
-    if (db_index >= 0) r.db_frame = db_frames[db_index].frame;
-    r.extra = {std::isfinite(residual_m) ? FormatFixed(residual_m, 4) : "",
-               inliers >= 0 ? std::to_string(inliers) : "", "", "", "", ""};
-    run.results.rows.push_back(std::move(r));
-    return run.results.rows.back();
-  };
-  auto inliers_at = [&](int i, int j) {
-    for (const PairResult& p : states[i].pairs) {
-      if (p.db_index == j) return p.num_inliers;
-    }
-    return -1;
-  };
-  auto lost_status = [&](int i) {
-    return states[i].off_route ? ResultStatus::kOffRoute : ResultStatus::kLost;
-  };
+    const std::vector<int> more = side > 0 ? impl.Window(lo - options.track_window_m, lo - 1e-6)
+                                           : impl.Window(hi + 1e-6, hi + options.track_window_m);
+    if (more.empty()) break;  // at an end of the route
+    std::vector<PairResult> extra = impl.Evaluate(query, more);
+    pairs.insert(pairs.end(), extra.begin(), extra.end());
+    ++est.window_extensions;
+  }
 
-  const bool want_online = options.all_methods || options.mode == LocalizeOptions::Mode::kOnline;
-  const bool want_free = options.all_methods || options.mode == LocalizeOptions::Mode::kFree;
-  const bool want_fixed = options.all_methods || options.mode == LocalizeOptions::Mode::kFixed;
-
-  if (options.all_methods) {
-    for (int i = 0; i < num_frames; ++i) {
-      const FrameState& st = states[i];
-      if (st.gps) {
-        add_row(i, "gps", ResultStatus::kOk, st.gps->s_m, -1, st.gps_position, NAN, -1);
+  const std::vector<std::pair<int, double>> row = RowCosts(pairs);
+  est.nearest_db_index = NearestPair(pairs);
+  for (const PairResult& p : pairs) {
+    if (p.db_index == est.nearest_db_index) est.nearest_inliers = p.num_inliers;
+  }
+  if (est.nearest_db_index >= 0) {
+    if (!impl.tracking || !impl.online) {
+      if (!impl.online) {
+        impl.online =
+            std::make_unique<OnlineDtw>(impl.num_db_frames(), est.nearest_db_index, options.dtw);
       } else {
-        add_row(i, "gps", ResultStatus::kLost, std::nullopt, -1, std::nullopt, NAN, -1);
-      }
-      if (st.nearest >= 0) {
-        add_row(i, "nearest", ResultStatus::kOk, db_s[st.nearest], st.nearest,
-                db_frames[st.nearest].position, NAN, inliers_at(i, st.nearest));
-      } else {
-        add_row(i, "nearest", lost_status(i), std::nullopt, -1, std::nullopt, NAN, -1);
+        impl.online->Reset(est.nearest_db_index);
       }
     }
+    est.db_index = impl.online->Push(row);
+    est.db_frame = impl.db_frames[est.db_index].frame;
+    for (const PairResult& p : pairs) {
+      if (p.db_index == est.db_index) est.num_inliers = p.num_inliers;
+    }
+    const double s = impl.SubFramePosition(pairs, est.db_index, &est.fit);
+    est.s_m = s;
+    est.position = impl.enu.ToGeodetic(impl.route.PointAt(s));
+    est.status = TrackStatus::kOk;
+    if (impl.refine) impl.Refine(query, &est, pairs);
+    if (impl.have_estimate && t > impl.t_est) {
+      const double v = (s - impl.s_est) / (t - impl.t_est);
+      impl.velocity = impl.tracking ? 0.5 * impl.velocity + 0.5 * v : 0.0;
+    }
+    impl.s_est = s;
+    impl.t_est = t;
+    impl.have_estimate = true;
+    impl.tracking = true;
+    impl.misses = 0;
+  } else {
+    if (impl.online) impl.online->Push(row);
+    if (++impl.misses >= options.lost_after_frames) impl.tracking = false;
+    est.status = off_route ? TrackStatus::kOffRoute : TrackStatus::kLost;
   }
-
-  // Offline alignments over the whole sparse cost matrix.
-  int first = -1, last = -1;
-  for (int i = 0; i < num_frames; ++i) {
-    if (states[i].nearest >= 0) {
-      if (first < 0) first = i;
-      last = i;
-    }
+  est.num_pairs = static_cast<int>(impl.num_pairs - pairs_before);
+  // The point matches served the refinement; dropping them keeps memory flat.
+  for (PairResult& p : pairs) {
+    p.point_matches.clear();
+    p.point_matches.shrink_to_fit();
   }
-  auto offline = [&](const std::string& dtw_name, const std::string& fit_name, bool fixed) {
-    DtwResult path;
-    if (first >= 0) {
-      path = fixed ? AlignFixed(costs, states[first].nearest, states[last].nearest, options.dtw)
-                   : AlignFree(costs, states[first].nearest, options.dtw);
+  if (options.record_offline) {
+    RecordedFrame rec;
+    rec.frame = query.frame;
+    rec.timestamp_s = query.timestamp_s;
+    rec.off_route = off_route;
+    rec.nearest = est.nearest_db_index;
+    for (const PairResult& p : pairs) {
+      if (p.valid) rec.valid_pairs.push_back(p);
     }
-    if (!path.valid && first >= 0) {
-      spdlog::warn("{} alignment failed: {}", dtw_name, path.failure);
-    }
-    for (int i = 0; i < num_frames; ++i) {
-      const bool ok = path.valid && !states[i].off_route && i >= first && (!fixed || i <= last) &&
-                      path.db_index[i] >= 0;
-      if (!ok) {
-        add_row(i, dtw_name, lost_status(i), std::nullopt, -1, std::nullopt, NAN, -1);
-        add_row(i, fit_name, lost_status(i), std::nullopt, -1, std::nullopt, NAN, -1);
-        continue;
-      }
-      const int j = path.db_index[i];
-      add_row(i, dtw_name, ResultStatus::kOk, db_s[j], j, db_frames[j].position, NAN,
-              inliers_at(i, j));
-      VFitResult fit;
-      const double s = SubFramePosition(states[i].pairs, db_s, j, effective, &fit);
-      add_row(i, fit_name, ResultStatus::kOk, s, j, std::nullopt,
-              fit.valid ? fit.rms_residual_m : NAN, fit.num_inliers);
-    }
-  };
-  if (want_fixed) offline("dtw_fixed", "fit_fixed", true);
-  if (want_free) offline("dtw_free", "fit_free", false);
-  if (want_online) {
-    for (int i = 0; i < num_frames; ++i) {
-      const FrameState& st = states[i];
-      if (st.online_ok) {
-        const VFitResult& fit = run.diagnostics[i].online_fit;
-        add_row(i, "online", ResultStatus::kOk, st.online_s, st.online_j, std::nullopt,
-                fit.valid ? fit.rms_residual_m : NAN, inliers_at(i, st.online_j));
-      } else {
-        add_row(i, "online", lost_status(i), std::nullopt, -1, std::nullopt, NAN, -1);
-      }
-    }
+    impl.record.push_back(std::move(rec));
   }
-
-  if (refine) {
-    // pnp: the refined 6-DoF pose; where the structure is too thin or the pose disagrees with the
-    // sequence, the online estimate, flagged in the `refine` column.
-    for (int i = 0; i < num_frames; ++i) {
-      const FrameState& st = states[i];
-      if (!st.online_ok || !st.refined) {
-        add_row(i, "pnp", lost_status(i), std::nullopt, -1, std::nullopt, NAN, -1);
-        continue;
-      }
-      const PoseRefinement& ref = *st.refined;
-      const VFitResult& fit = run.diagnostics[i].online_fit;
-      if (ref.status != RefineStatus::kOk) {
-        ResultRow& r = add_row(i, "pnp", ResultStatus::kOk, st.online_s, st.online_j, std::nullopt,
-                               fit.valid ? fit.rms_residual_m : NAN, ref.num_inliers);
-        r.extra[2] = RefineStatusName(ref.status);
-        ++(ref.status == RefineStatus::kThin ? run.num_refine_thin : run.num_refine_rejected);
-        continue;
-      }
-      const Eigen::Vector3d& centre = ref.enu_from_cam.translation;
-      const Geodetic position = enu.ToGeodetic(centre);
-      ResultRow& r = add_row(i, "pnp", ResultStatus::kOk, ref.projection.s_m, st.online_j, position,
-                             NAN, ref.num_inliers);
-      const Eigen::Matrix3d rotation = ref.enu_from_cam.rotation.toRotationMatrix();
-      r.enu_from_cam =
-          Eigen::Quaterniond(enu.EnuFromLocalEnu(position).transpose() * rotation).normalized();
-      const Eigen::Vector3d axis = rotation.col(2);
-      double heading = std::atan2(axis.x(), axis.y()) * 180.0 / M_PI;
-      if (heading < 0) heading += 360.0;
-      r.extra[2] = "ok";
-      r.extra[3] = FormatFixed(ref.projection.cross_track_m, 3);
-      r.extra[4] = FormatFixed(heading, 3);
-      r.extra[5] = FormatFixed(ref.rmse_px, 3);
-      ++run.num_refined_ok;
-    }
-  }
-
-  run.num_frames = num_frames;
-  run.seconds = Seconds(start_time);
-  run.frames_per_second = run.seconds > 0 ? num_frames / run.seconds : 0.0;
-  return run;
+  if (options.diagnostics) est.pairs = std::move(pairs);
+  est.tracking_seconds = Seconds(start);
+  return est;
 }
 
-void WriteDiagnosticsCsv(const LocalizeRun& run, const std::string& path) {
-  CsvWriter out(path, {"frame", "timestamp_s", "gps_s_m", "db_frame", "db_s_m", "valid", "d",
-                       "signed_d", "matches", "inliers", "failure", "online_db_frame", "fit_l_m",
-                       "fit_residual_m", "reinitialised", "frame_seconds"});
-  for (const FrameDiagnostics& diag : run.diagnostics) {
-    const std::string online_frame =
-        diag.online_db_index >= 0 ? std::to_string(run.db_frame_numbers[diag.online_db_index]) : "";
-    for (const PairResult& p : diag.pairs) {
-      out.WriteRow({std::to_string(diag.frame), FormatDouble(diag.timestamp_s),
-                    diag.gps_s_m ? FormatFixed(*diag.gps_s_m, 3) : "",
-                    std::to_string(run.db_frame_numbers[p.db_index]),
-                    FormatFixed(run.db_s_m[p.db_index], 3), p.valid ? "1" : "0",
-                    p.valid ? FormatDouble(p.distance) : "",
-                    p.valid ? FormatDouble(p.signed_distance) : "", std::to_string(p.num_matches),
-                    std::to_string(p.num_inliers), p.failure, online_frame,
-                    diag.online_fit.valid ? FormatFixed(diag.online_fit.l_m, 3) : "",
-                    diag.online_fit.valid ? FormatFixed(diag.online_fit.rms_residual_m, 4) : "",
-                    diag.reinitialised ? "1" : "0", FormatFixed(diag.seconds, 4)});
-    }
-  }
-  out.Close();
+int Localizer::Impl::num_db_frames() const { return static_cast<int>(db_frames.size()); }
+
+bool Localizer::refining() const { return impl_->refine; }
+const LocalizeOptions& Localizer::options() const { return impl_->options; }
+const Camera& Localizer::query_camera() const { return impl_->undistorter.undistorted_camera(); }
+int Localizer::num_db_frames() const { return impl_->num_db_frames(); }
+frame_t Localizer::db_frame_number(int db_index) const {
+  return impl_->db_frames.at(db_index).frame;
 }
+double Localizer::db_s_m(int db_index) const { return impl_->db_s.at(db_index); }
+const Route& Localizer::route() const { return impl_->route; }
+int64_t Localizer::num_pairs() const { return impl_->num_pairs; }
+int Localizer::num_reinitialisations() const { return impl_->num_reinitialisations; }
 
 }  // namespace epiloc

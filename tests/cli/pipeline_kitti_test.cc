@@ -19,7 +19,7 @@
 #include "epiloc/georef/trajectory_import.h"
 #include "epiloc/io/kitti.h"
 #include "epiloc/io/result.h"
-#include "epiloc/localize/localizer.h"
+#include "epiloc/localize/stream.h"
 #include "epiloc/survey/build_db.h"
 #include "epiloc/vo/visual_odometry.h"
 #include "pipeline_test_util.h"

@@ -1,6 +1,6 @@
 // The localizer end to end: a synthetic street with exact ground truth and the shared KITTI
 // drive (the development scenario of the issue), evaluated with the eval module.
-#include "epiloc/localize/localizer.h"
+#include "epiloc/localize/stream.h"
 
 #include <filesystem>
 #include <iostream>

@@ -35,6 +35,10 @@ class CsvReader {
 
   // Reads the next row; false at the end of the file.
   bool Next();
+  // The same for a file another program is still appending to: only lines ended by a newline
+  // are read (a partial last line is left for later); false when no complete row is available
+  // yet. May be called again for the rows appended since.
+  bool NextAppended();
   // Line number (1-based) of the current row, for messages.
   int64_t line() const { return line_; }
   // "path:line", the place of the current row.
@@ -55,20 +59,27 @@ class CsvReader {
   std::unordered_map<std::string, size_t> column_index_;
   std::vector<std::string> fields_;
   int64_t line_ = 0;
+  // Takes `text` (line line_) as the current row; false for a blank or comment line.
+  bool TakeLine(const std::string& text);
 };
 
 // Writes a header and rows; values are formatted by the caller. Throws Error on I/O failure.
 class CsvWriter {
  public:
+  // Opens `path` ("-": standard output) and writes the header.
   CsvWriter(const std::string& path, const std::vector<std::string>& header);
   void WriteRow(const std::vector<std::string>& fields);
+  // Hands the rows written so far to the file (or the reader of standard output); throws Error
+  // if writing failed.
+  void Flush();
   // Flushes and checks the stream; called by the destructor too (which does not throw).
   void Close();
   ~CsvWriter();
 
  private:
   std::string path_;
-  std::ofstream out_;
+  std::ofstream file_;
+  std::ostream* out_ = nullptr;  // file_ or std::cout; null once closed
   size_t num_columns_;
 };
 

@@ -101,6 +101,11 @@ struct Drive {
 // `time_offset_s` of the manifest is added to the GNSS and ground-truth timestamps.
 Drive LoadDrive(const std::string& dir);
 
+// The camera calibration of a drive.json-style file: its "camera" object as in drive.json (other
+// keys are ignored, so a drive's own drive.json serves). Throws Error naming the file for a
+// missing or malformed calibration.
+Camera ReadCalibrationFile(const std::string& path);
+
 // Writes a drive in the canonical layout: drive.json, frames.csv, gnss.csv, ground_truth.csv,
 // lidar.csv (the files present in the Drive), with full double precision, so that
 // LoadDrive(dir) gives back the same drive. Image, video and scan paths are written as given when

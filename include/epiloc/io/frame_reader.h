@@ -62,6 +62,10 @@ class FrameReader {
 // the hash of "<hash of the video file>:<frame number>". Throws Error if the file cannot be read.
 std::string FrameContentHash(const Drive& drive, size_t index);
 
+// One image file as FrameReader reads it: 8-bit, grey (CV_8UC1) or BGR (`colour`), checked
+// against the calibration's size. Throws Error as FrameReader does.
+cv::Mat ReadImageFile(const std::string& path, const Camera& camera, bool colour);
+
 // Throws Error "<path>: image size WxH differs from the calibration's WxH" unless `image` has the
 // camera's size.
 void CheckImageSize(const cv::Mat& image, const Camera& camera, const std::string& path);

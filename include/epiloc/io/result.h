@@ -27,6 +27,7 @@
 
 #include <Eigen/Geometry>
 
+#include "epiloc/core/csv.h"
 #include "epiloc/core/types.h"
 #include "epiloc/geo/geodetic.h"
 
@@ -87,6 +88,27 @@ struct ResultTable {
 // parse (NaN and inf included), an ok row without position, a frame repeated within a method,
 // lat/lon out of range, or a file without rows.
 ResultTable ReadResultCsv(const std::string& path);
+
+// Writes result rows as they are made (a streaming localizer): the header first (required
+// columns, qw..qz when `with_orientation`, then `extra_columns`), then each row; `path` "-" is
+// standard output. Rows with an orientation need with_orientation; each row needs one value per
+// extra column.
+class ResultCsvWriter {
+ public:
+  ResultCsvWriter(const std::string& path,
+                  const std::vector<std::string>& extra_columns,
+                  bool with_orientation);
+  void Write(const ResultRow& row);
+  // Hands the rows written so far on (CsvWriter::Flush).
+  void Flush();
+  void Close();
+
+ private:
+  std::string path_;
+  size_t num_extra_;
+  bool with_orientation_;
+  CsvWriter writer_;
+};
 
 // Writes the required columns, qw..qz when any row has an orientation, then the extra columns;
 // doubles with full precision so that ReadResultCsv gives the same rows back.

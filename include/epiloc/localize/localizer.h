@@ -1,21 +1,41 @@
-// Localizing a drive along a surveyed route (Kyutoku et al., "Epipolar geometry-based
-// ego-localization using an in-vehicle monocular camera"), made robust and causal:
-//   1. SIFT on each undistorted query frame;
-//   2. candidate database frames: around the GPS prior (or by image retrieval without GPS or when
-//      lost) to initialise, then a window around the tracked position;
+// Localizing a vehicle along a surveyed route, frame by frame (Kyutoku et al., "Epipolar
+// geometry-based ego-localization using an in-vehicle monocular camera"), made robust and causal:
+//   1. SIFT on each undistorted query frame (Prepare: may run ahead on other threads);
+//   2. candidate database frames: around the GNSS prior (or by image retrieval without GNSS or
+//      when lost) to initialise, then a window around the tracked position (Track);
 //   3. epipolar distance d = 1/|e_x| to each candidate (PairEvaluator);
-//   4. DTW over the sparse cost matrix: online (causal), free (start fixed, end free) and fixed
-//      (both ends fixed);
-//   5. sub-frame position from the V-fit d = a|s - l| around the DTW match, interpolated along
-//      the database route.
+//   4. causal DTW over the evaluated costs (online) and the V-fit d = a|s - l| around its match
+//      for a sub-frame position l along the route;
+//   5. with a triangulated survey, a metric 6-DoF pose by PnP against its 3-D points (`pnp`).
+// The offline alignments of the paper (DTW with free and with fixed ends) run once over what the
+// tracker recorded (OfflineRows), after the last frame.
+//
+// A Localizer holds one route database and the state of one vehicle; memory is bounded over an
+// endless stream when `record_offline` is off (with it, a few hundred bytes per frame are kept for
+// the offline alignments).
+//
+// Example (see also examples/localize_drive.cc):
+//   epiloc::Localizer localizer("route.sqlite", camera, epiloc::LocalizeOptions());
+//   for (;;) {
+//     epiloc::QueryFrame frame{number, timestamp_s, image, gnss_fix};
+//     const epiloc::FrameEstimate estimate = localizer.Track(frame);
+//     if (estimate.status == epiloc::TrackStatus::kOk) use(estimate.position, estimate.s_m);
+//   }
 #pragma once
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include "epiloc/core/progress.h"
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "epiloc/camera/camera.h"
+#include "epiloc/core/types.h"
 #include "epiloc/feature/sift.h"
+#include "epiloc/geo/geodetic.h"
+#include "epiloc/geo/route.h"
 #include "epiloc/io/result.h"
 #include "epiloc/localize/dtw.h"
 #include "epiloc/localize/pair_evaluator.h"
@@ -30,7 +50,7 @@ struct LocalizeOptions {
   // Write every method (gps, nearest, dtw_fixed, fit_fixed, dtw_free, fit_free, online), not
   // only the chosen mode's.
   bool all_methods = false;
-  // Use the drive's GNSS as a prior (off: retrieval places the drive on the route).
+  // Use the frames' GNSS fixes as a prior (off: retrieval places the vehicle on the route).
   bool use_gps = true;
   // Half-width of the along-route window searched around the GPS prior when (re)initialising.
   double gps_window_m = 30.0;
@@ -51,8 +71,14 @@ struct LocalizeOptions {
   double off_route_m = 30.0;
   // Strongest query features used.
   int max_query_features = 2000;
-  // Threads for feature extraction and pair evaluation (0 = one per core).
+  // Threads for pair evaluation inside Track (0 = one per core). Extraction ahead of the tracker
+  // is the caller's (LocalizeStream uses the same number).
   int num_threads = 0;
+  // Keep what the offline alignments need per frame (OfflineRows). Off: memory stays flat over an
+  // endless stream. Switched on by Localize/LocalizeStream when mode or all_methods asks for them.
+  bool record_offline = false;
+  // FrameEstimate::pairs carries every evaluated pair (for --diagnostics).
+  bool diagnostics = false;
   // Query extraction; by default without the upsampled octave (about 3x faster; the database
   // features too fine to match are then skipped, PairOptions::min_db_feature_angle_rad).
   SiftOptions sift = QuerySiftDefaults();
@@ -64,49 +90,107 @@ struct LocalizeOptions {
 
   void Check() const;
   static SiftOptions QuerySiftDefaults();
+  // Whether the options ask for the offline (free / fixed) rows.
+  bool WantsOffline() const { return all_methods || mode != Mode::kOnline; }
 };
 
 std::string ModeName(LocalizeOptions::Mode mode);
 LocalizeOptions::Mode ParseMode(const std::string& name);
 
-// Per-frame diagnostics (--diagnostics): what the localizer saw.
-struct FrameDiagnostics {
+// One camera frame as it arrives.
+struct QueryFrame {
+  frame_t frame = kInvalidFrame;  // the caller's frame number (result rows carry it)
+  double timestamp_s = 0.0;       // same clock as the GNSS fixes (UNIX time for real data)
+  // 8-bit grey or BGR image as the camera delivers it (distorted, the calibration's size).
+  cv::Mat image;
+  std::optional<Geodetic> gnss;  // GNSS fix at timestamp_s, when there is one
+  double arrival_s = 0.0;        // when the frame became available (steady clock, for latency)
+};
+
+// A frame after feature extraction (Localizer::Prepare), ready for Track.
+struct PreparedFrame {
   frame_t frame = kInvalidFrame;
   double timestamp_s = 0.0;
-  std::optional<double> gps_s_m;
+  std::optional<Geodetic> gnss;
+  double arrival_s = 0.0;
+  FeatureSet features;                     // of the undistorted frame, strongest first
+  Eigen::VectorXf global;                  // retrieval descriptor (empty without an index)
+  std::shared_ptr<DescriptorIndex> index;  // query index (pair-by-pair matching only)
+  double extraction_seconds = 0.0;
+};
+
+enum class TrackStatus { kOk, kLost, kOffRoute };
+const char* TrackStatusName(TrackStatus status);
+
+// What Track reports for one frame, at once.
+struct FrameEstimate {
+  frame_t frame = kInvalidFrame;
+  double timestamp_s = 0.0;
+  TrackStatus status = TrackStatus::kLost;
+  // The online estimate (status kOk): along-route distance, camera centre on the route.
+  double s_m = 0.0;
+  Geodetic position;
+  int db_index = -1;                 // the DTW match, index into the route's database frames
+  frame_t db_frame = kInvalidFrame;  // its frame number
+  int num_inliers = -1;              // inliers of the pair with the DTW match (-1: none)
+  VFitResult fit;                    // the V-fit around the match
+  bool reinitialised = false;        // the window came from a (re)initialisation
+  int window_extensions = 0;         // times the window was extended to bracket the vehicle
+  // The GNSS prior of the frame and its projection onto the route.
+  std::optional<Geodetic> gnss;
+  std::optional<RouteProjection> gnss_on_route;
+  int nearest_db_index = -1;  // the valid pair of smallest d (the paper's "nearest")
+  int nearest_inliers = -1;   // its inliers
+  // The 6-DoF refinement (set for localized frames when the database has structure).
+  std::optional<PoseRefinement> refined;
+  // Every evaluated pair (with options.diagnostics; point matches dropped).
   std::vector<PairResult> pairs;
-  int online_db_index = -1;
-  VFitResult online_fit;
-  bool reinitialised = false;
-  int window_extensions = 0;  // times the window was extended to bracket the vehicle
-  double seconds = 0.0;       // processing time of the frame (extraction excluded when pipelined)
+  int num_pairs = 0;  // pairs evaluated for this frame
+  double extraction_seconds = 0.0;
+  double tracking_seconds = 0.0;
 };
 
-struct LocalizeRun {
-  ResultTable results;
-  std::vector<frame_t> db_frame_numbers;  // per database index (route order)
-  std::vector<double> db_s_m;             // per database index
-  std::vector<FrameDiagnostics> diagnostics;
-  int num_frames = 0;
-  int num_localized_online = 0;
-  int num_reinitialisations = 0;
-  double seconds = 0.0;
-  double frames_per_second = 0.0;
-  int64_t num_pairs = 0;
-  bool refined = false;         // pnp rows were written (the database has structure)
-  int num_refined_ok = 0;       // frames with an accepted PnP pose
-  int num_refine_thin = 0;      // fell back to the epipolar estimate: too little structure
-  int num_refine_rejected = 0;  // fell back: the PnP pose disagreed with the sequence
+class Localizer {
+ public:
+  // Opens the route database (read-only) for a query camera with calibration `query_camera` (as
+  // its frames are delivered: distortion allowed). Throws Error for a database without frames,
+  // invalid options, or --no-gps with a database without retrieval index.
+  Localizer(const std::string& db_path, const Camera& query_camera, const LocalizeOptions& options);
+  ~Localizer();
+  Localizer(const Localizer&) = delete;
+  Localizer& operator=(const Localizer&) = delete;
+
+  // Undistortion, SIFT and the retrieval descriptor of a frame. Thread-safe: may run ahead of
+  // Track on other threads. Throws Error if the image does not have the calibration's size.
+  PreparedFrame Prepare(const QueryFrame& frame) const;
+  // Tracks one frame (frames in time order) and returns its estimate.
+  FrameEstimate Track(const PreparedFrame& frame);
+  FrameEstimate Track(const QueryFrame& frame) { return Track(Prepare(frame)); }
+
+  // Result rows of a tracked frame (gps and nearest with all_methods, online when the mode or
+  // all_methods asks for it, pnp when refining), in that order.
+  std::vector<ResultRow> Rows(const FrameEstimate& estimate) const;
+  // Rows of the offline alignments over every frame tracked so far (dtw_fixed, fit_fixed,
+  // dtw_free, fit_free as the options ask); needs options.record_offline.
+  std::vector<ResultRow> OfflineRows() const;
+  // The extra columns of the rows (after the required ones and qw..qz).
+  static const std::vector<std::string>& ExtraColumns();
+  // Whether pnp rows (with orientations) are written: the database has triangulated points and
+  // the refinement is enabled.
+  bool refining() const;
+
+  const LocalizeOptions& options() const;
+  const Camera& query_camera() const;  // undistorted pinhole camera the features refer to
+  int num_db_frames() const;
+  frame_t db_frame_number(int db_index) const;
+  double db_s_m(int db_index) const;
+  const Route& route() const;
+  int64_t num_pairs() const;
+  int num_reinitialisations() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
-
-// Localizes every frame of the drive in `drive_dir` against the database. Throws Error for bad
-// input; frames that cannot be localized are rows with status lost / off_route.
-LocalizeRun Localize(const std::string& db_path,
-                     const std::string& drive_dir,
-                     const LocalizeOptions& options,
-                     const ProgressCallback& progress = nullptr);
-
-// Writes the per-frame diagnostics as CSV (one row per evaluated pair).
-void WriteDiagnosticsCsv(const LocalizeRun& run, const std::string& path);
 
 }  // namespace epiloc

@@ -1,0 +1,75 @@
+// The Localizer's state, shared by its translation units (tracking, result rows).
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+#include "epiloc/camera/undistorter.h"
+#include "epiloc/db/database.h"
+#include "epiloc/geo/geodetic.h"
+#include "epiloc/geo/route.h"
+#include "epiloc/localize/localizer.h"
+#include "epiloc/retrieval/global_descriptor.h"
+
+namespace epiloc {
+
+// What the offline alignments need of one tracked frame.
+struct RecordedFrame {
+  frame_t frame = kInvalidFrame;
+  double timestamp_s = 0.0;
+  bool off_route = false;
+  int nearest = -1;
+  std::vector<PairResult> valid_pairs;  // without point matches
+};
+
+// DTW costs of a row of evaluated pairs: (database index, cost in [0, 1]) sorted by index.
+std::vector<std::pair<int, double>> RowCosts(const std::vector<PairResult>& pairs);
+
+struct Localizer::Impl {
+  Impl(const std::string& db_path, const Camera& camera, const LocalizeOptions& options);
+
+  // Track's steps.
+  std::vector<PairResult> Evaluate(const PreparedFrame& query, const std::vector<int>& indices);
+  // A (re)initialisation: candidates from retrieval / the GNSS window, then the window around
+  // the best-supported one (`reinitialised` then true).
+  std::vector<PairResult> Initialise(const PreparedFrame& query,
+                                     const std::optional<RouteProjection>& gnss,
+                                     bool* reinitialised);
+  std::vector<int> Window(double from_s_m, double to_s_m) const;
+  void Refine(const PreparedFrame& query, FrameEstimate* estimate, std::vector<PairResult>& pairs);
+
+  int num_db_frames() const;
+  // Sub-frame position around database frame j from the valid pairs (V-fit, or the bracketing
+  // sign change, or s_j).
+  double SubFramePosition(const std::vector<PairResult>& pairs, int j, VFitResult* fit) const;
+
+  std::string db_path;
+  LocalizeOptions options;  // with the windows widened to the survey's spacing (see constructor)
+  Database db;
+  EnuFrame enu;
+  Route route;
+  Undistorter undistorter;
+  std::vector<DbFrame> db_frames;  // route order (by s)
+  std::vector<double> db_s;
+  double min_window_spacing_m = 0.0;
+  bool refine = false;
+  std::unique_ptr<PairEvaluator> evaluator;
+  std::optional<GlobalDescriptorModel> retrieval_model;
+  GlobalIndex retrieval_index;
+  std::unordered_map<int64_t, int> db_index_of_image;
+
+  // Tracking state.
+  std::unique_ptr<OnlineDtw> online;
+  bool tracking = false;
+  int misses = 0;
+  double s_est = 0.0, velocity = 0.0, t_est = 0.0;
+  bool have_estimate = false;
+
+  int64_t num_pairs = 0;
+  int num_reinitialisations = 0;
+  std::vector<RecordedFrame> record;  // with options.record_offline
+};
+
+}  // namespace epiloc

@@ -1,0 +1,186 @@
+// The Localizer's result rows: per tracked frame (gps, nearest, online, pnp) and the offline
+// alignments over the recorded frames (dtw_fixed, fit_fixed, dtw_free, fit_free).
+#include <cmath>
+
+#include <spdlog/spdlog.h>
+
+#include "epiloc/core/csv.h"
+#include "epiloc/core/error.h"
+#include "localizer_internal.h"
+
+namespace epiloc {
+namespace {
+
+// Columns of ExtraColumns(), by position.
+enum Extra { kFitResidual, kInliers, kRefine, kCrossTrack, kHeading, kRmse, kNumExtra };
+
+ResultRow MakeRow(frame_t frame,
+                  double timestamp_s,
+                  const std::string& method,
+                  ResultStatus status,
+                  std::optional<double> s_m,
+                  frame_t db_frame,
+                  const std::optional<Geodetic>& position,
+                  double residual_m,
+                  int inliers) {
+  ResultRow r;
+  r.frame = frame;
+  r.timestamp_s = timestamp_s;
+  r.method = method;
+  r.status = status;
+  if (status == ResultStatus::kOk) {
+    r.has_position = position.has_value();
+    if (position) r.position = *position;
+    if (s_m) {
+      r.has_s = true;
+      r.s_m = *s_m;
+    }
+  }
+  if (db_frame != kInvalidFrame) r.db_frame = db_frame;
+  r.extra.assign(kNumExtra, "");
+  if (std::isfinite(residual_m)) r.extra[kFitResidual] = FormatFixed(residual_m, 4);
+  if (inliers >= 0) r.extra[kInliers] = std::to_string(inliers);
+  return r;
+}
+
+ResultStatus LostStatus(bool off_route) {
+  return off_route ? ResultStatus::kOffRoute : ResultStatus::kLost;
+}
+
+}  // namespace
+
+const std::vector<std::string>& Localizer::ExtraColumns() {
+  static const std::vector<std::string> kColumns = {"fit_residual_m", "inliers",
+                                                    "refine",         "cross_track_m",
+                                                    "heading_deg",    "reprojection_rmse_px"};
+  return kColumns;
+}
+
+std::vector<ResultRow> Localizer::Rows(const FrameEstimate& est) const {
+  const Impl& impl = *impl_;
+  const LocalizeOptions& options = impl.options;
+  const bool off_route = est.status == TrackStatus::kOffRoute;
+  std::vector<ResultRow> rows;
+  if (options.all_methods) {
+    if (est.gnss && est.gnss_on_route) {
+      rows.push_back(MakeRow(est.frame, est.timestamp_s, "gps", ResultStatus::kOk,
+                             est.gnss_on_route->s_m, kInvalidFrame, est.gnss, NAN, -1));
+    } else {
+      rows.push_back(MakeRow(est.frame, est.timestamp_s, "gps", ResultStatus::kLost, std::nullopt,
+                             kInvalidFrame, std::nullopt, NAN, -1));
+    }
+    if (est.nearest_db_index >= 0) {
+      const DbFrame& nearest = impl.db_frames[est.nearest_db_index];
+      rows.push_back(MakeRow(est.frame, est.timestamp_s, "nearest", ResultStatus::kOk, nearest.s_m,
+                             nearest.frame, nearest.position, NAN, est.nearest_inliers));
+    } else {
+      rows.push_back(MakeRow(est.frame, est.timestamp_s, "nearest", LostStatus(off_route),
+                             std::nullopt, kInvalidFrame, std::nullopt, NAN, -1));
+    }
+  }
+  const bool ok = est.status == TrackStatus::kOk;
+  if (options.all_methods || options.mode == LocalizeOptions::Mode::kOnline) {
+    if (ok) {
+      rows.push_back(MakeRow(est.frame, est.timestamp_s, "online", ResultStatus::kOk, est.s_m,
+                             est.db_frame, est.position,
+                             est.fit.valid ? est.fit.rms_residual_m : NAN, est.num_inliers));
+    } else {
+      rows.push_back(MakeRow(est.frame, est.timestamp_s, "online", LostStatus(off_route),
+                             std::nullopt, kInvalidFrame, std::nullopt, NAN, -1));
+    }
+  }
+  if (!impl.refine) return rows;
+  // pnp: the refined 6-DoF pose; where the structure is too thin or the pose disagrees with the
+  // sequence, the online estimate, flagged in the `refine` column.
+  if (!ok || !est.refined) {
+    rows.push_back(MakeRow(est.frame, est.timestamp_s, "pnp", LostStatus(off_route), std::nullopt,
+                           kInvalidFrame, std::nullopt, NAN, -1));
+    return rows;
+  }
+  const PoseRefinement& ref = *est.refined;
+  if (ref.status != RefineStatus::kOk) {
+    ResultRow r =
+        MakeRow(est.frame, est.timestamp_s, "pnp", ResultStatus::kOk, est.s_m, est.db_frame,
+                est.position, est.fit.valid ? est.fit.rms_residual_m : NAN, ref.num_inliers);
+    r.extra[kRefine] = RefineStatusName(ref.status);
+    rows.push_back(std::move(r));
+    return rows;
+  }
+  const Eigen::Vector3d& centre = ref.enu_from_cam.translation;
+  const Geodetic position = impl.enu.ToGeodetic(centre);
+  ResultRow r = MakeRow(est.frame, est.timestamp_s, "pnp", ResultStatus::kOk, ref.projection.s_m,
+                        est.db_frame, position, NAN, ref.num_inliers);
+  const Eigen::Matrix3d rotation = ref.enu_from_cam.rotation.toRotationMatrix();
+  r.enu_from_cam =
+      Eigen::Quaterniond(impl.enu.EnuFromLocalEnu(position).transpose() * rotation).normalized();
+  const Eigen::Vector3d axis = rotation.col(2);
+  double heading = std::atan2(axis.x(), axis.y()) * 180.0 / M_PI;
+  if (heading < 0) heading += 360.0;
+  r.extra[kRefine] = "ok";
+  r.extra[kCrossTrack] = FormatFixed(ref.projection.cross_track_m, 3);
+  r.extra[kHeading] = FormatFixed(heading, 3);
+  r.extra[kRmse] = FormatFixed(ref.rmse_px, 3);
+  rows.push_back(std::move(r));
+  return rows;
+}
+
+std::vector<ResultRow> Localizer::OfflineRows() const {
+  const Impl& impl = *impl_;
+  const LocalizeOptions& options = impl.options;
+  EPILOC_CHECK(options.record_offline,
+               "localize: the offline alignments need LocalizeOptions::record_offline");
+  const std::vector<RecordedFrame>& record = impl.record;
+  const int num_frames = static_cast<int>(record.size());
+  SparseCostMatrix costs(num_frames, impl.num_db_frames());
+  int first = -1, last = -1;
+  for (int i = 0; i < num_frames; ++i) {
+    for (const auto& [j, cost] : RowCosts(record[i].valid_pairs)) costs.Set(i, j, cost);
+    if (record[i].nearest >= 0) {
+      if (first < 0) first = i;
+      last = i;
+    }
+  }
+  std::vector<ResultRow> rows;
+  const auto align = [&](const std::string& dtw_name, const std::string& fit_name, bool fixed) {
+    DtwResult path;
+    if (first >= 0) {
+      path = fixed ? AlignFixed(costs, record[first].nearest, record[last].nearest, options.dtw)
+                   : AlignFree(costs, record[first].nearest, options.dtw);
+      if (!path.valid) spdlog::warn("{} alignment failed: {}", dtw_name, path.failure);
+    }
+    for (int i = 0; i < num_frames; ++i) {
+      const RecordedFrame& rec = record[i];
+      const bool ok = path.valid && !rec.off_route && i >= first && (!fixed || i <= last) &&
+                      path.db_index[i] >= 0;
+      if (!ok) {
+        for (const std::string& name : {dtw_name, fit_name}) {
+          rows.push_back(MakeRow(rec.frame, rec.timestamp_s, name, LostStatus(rec.off_route),
+                                 std::nullopt, kInvalidFrame, std::nullopt, NAN, -1));
+        }
+        continue;
+      }
+      const int j = path.db_index[i];
+      const DbFrame& match = impl.db_frames[j];
+      int inliers = -1;
+      for (const PairResult& p : rec.valid_pairs) {
+        if (p.db_index == j) inliers = p.num_inliers;
+      }
+      rows.push_back(MakeRow(rec.frame, rec.timestamp_s, dtw_name, ResultStatus::kOk, match.s_m,
+                             match.frame, match.position, NAN, inliers));
+      VFitResult fit;
+      const double s = impl.SubFramePosition(rec.valid_pairs, j, &fit);
+      rows.push_back(MakeRow(rec.frame, rec.timestamp_s, fit_name, ResultStatus::kOk, s,
+                             match.frame, impl.enu.ToGeodetic(impl.route.PointAt(s)),
+                             fit.valid ? fit.rms_residual_m : NAN, fit.num_inliers));
+    }
+  };
+  if (options.all_methods || options.mode == LocalizeOptions::Mode::kFixed) {
+    align("dtw_fixed", "fit_fixed", true);
+  }
+  if (options.all_methods || options.mode == LocalizeOptions::Mode::kFree) {
+    align("dtw_free", "fit_free", false);
+  }
+  return rows;
+}
+
+}  // namespace epiloc

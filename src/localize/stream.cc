@@ -1,0 +1,207 @@
+#include "epiloc/localize/stream.h"
+
+#include <algorithm>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <exception>
+#include <future>
+#include <mutex>
+#include <thread>
+
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double NowSeconds() {
+  return std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
+}
+
+// Linear interpolation between order statistics (as the evaluator's percentiles).
+double Percentile(std::vector<double> values, double p) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const double rank = p * static_cast<double>(values.size() - 1);
+  const size_t lo = static_cast<size_t>(rank);
+  const size_t hi = std::min(lo + 1, values.size() - 1);
+  return values[lo] + (values[hi] - values[lo]) * (rank - static_cast<double>(lo));
+}
+
+// Frames read and prepared ahead of the tracker, in order, at most `depth` at a time.
+class PrepareQueue {
+ public:
+  PrepareQueue(const Localizer& localizer, FrameSource& source, int depth)
+      : localizer_(localizer), source_(source), depth_(depth) {
+    producer_ = std::thread([this] { Produce(); });
+  }
+  ~PrepareQueue() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    changed_.notify_all();
+    producer_.join();
+  }
+
+  // The next prepared frame's future; none at the end of the input. Rethrows a source error.
+  std::optional<std::future<PreparedFrame>> Pop() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    changed_.wait(lock, [this] { return !queue_.empty() || done_; });
+    if (queue_.empty()) {
+      if (error_) std::rethrow_exception(error_);
+      return std::nullopt;
+    }
+    std::future<PreparedFrame> next = std::move(queue_.front());
+    queue_.pop_front();
+    changed_.notify_all();
+    return next;
+  }
+
+ private:
+  void Produce() {
+    try {
+      for (;;) {
+        {
+          std::unique_lock<std::mutex> lock(mutex_);
+          changed_.wait(lock, [this] { return static_cast<int>(queue_.size()) < depth_ || stop_; });
+          if (stop_) break;
+        }
+        std::optional<QueryFrame> frame = source_.Next();
+        if (!frame) break;
+        std::future<PreparedFrame> prepared = std::async(
+            std::launch::async, [this](const QueryFrame& f) { return localizer_.Prepare(f); },
+            std::move(*frame));
+        std::lock_guard<std::mutex> lock(mutex_);
+        queue_.push_back(std::move(prepared));
+        changed_.notify_all();
+      }
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      error_ = std::current_exception();
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    done_ = true;
+    changed_.notify_all();
+  }
+
+  const Localizer& localizer_;
+  FrameSource& source_;
+  int depth_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::deque<std::future<PreparedFrame>> queue_;
+  bool done_ = false, stop_ = false;
+  std::exception_ptr error_;
+  std::thread producer_;
+};
+
+}  // namespace
+
+LocalizeRun LocalizeStream(Localizer& localizer,
+                           FrameSource& source,
+                           const RowSink& sink,
+                           const ProgressCallback& progress) {
+  const auto start = Clock::now();
+  LocalizeRun run;
+  run.refined = localizer.refining();
+  std::vector<double> latencies;
+  const int64_t total = std::max<int64_t>(0, source.size());
+  {
+    PrepareQueue queue(localizer, source, std::max(1, localizer.options().num_threads));
+    while (std::optional<std::future<PreparedFrame>> next = queue.Pop()) {
+      const PreparedFrame prepared = next->get();
+      const FrameEstimate estimate = localizer.Track(prepared);
+      sink(&estimate, localizer.Rows(estimate));
+      latencies.push_back(NowSeconds() - prepared.arrival_s);
+      ++run.num_frames;
+      run.extraction_seconds += estimate.extraction_seconds;
+      run.tracking_seconds += estimate.tracking_seconds;
+      if (estimate.status == TrackStatus::kOk) ++run.num_localized_online;
+      if (estimate.refined) {
+        switch (estimate.refined->status) {
+          case RefineStatus::kOk:
+            ++run.num_refined_ok;
+            break;
+          case RefineStatus::kThin:
+            ++run.num_refine_thin;
+            break;
+          case RefineStatus::kRejected:
+            ++run.num_refine_rejected;
+            break;
+        }
+      }
+      if (progress) progress(run.num_frames, std::max<int64_t>(total, run.num_frames));
+    }
+  }
+  if (localizer.options().record_offline && localizer.options().WantsOffline()) {
+    sink(nullptr, localizer.OfflineRows());
+  }
+  run.num_reinitialisations = localizer.num_reinitialisations();
+  run.num_pairs = localizer.num_pairs();
+  run.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  run.frames_per_second = run.seconds > 0 ? run.num_frames / run.seconds : 0.0;
+  run.latency_p50_s = Percentile(latencies, 0.50);
+  run.latency_p95_s = Percentile(latencies, 0.95);
+  run.latency_max_s =
+      latencies.empty() ? 0.0 : *std::max_element(latencies.begin(), latencies.end());
+  return run;
+}
+
+LocalizeRun Localize(const std::string& db_path,
+                     const std::string& drive_dir,
+                     const LocalizeOptions& options,
+                     const ProgressCallback& progress) {
+  options.Check();
+  DriveFrameSource source(drive_dir, options.use_gps);
+  LocalizeOptions effective = options;
+  effective.record_offline = options.WantsOffline();
+  Localizer localizer(db_path, source.camera(), effective);
+  ResultTable results;
+  results.extra_columns = Localizer::ExtraColumns();
+  std::vector<ResultRow> offline;
+  LocalizeRun run = LocalizeStream(
+      localizer, source,
+      [&](const FrameEstimate* estimate, const std::vector<ResultRow>& rows) {
+        std::vector<ResultRow>& into = estimate ? results.rows : offline;
+        into.insert(into.end(), rows.begin(), rows.end());
+      },
+      progress);
+  results.rows.insert(results.rows.end(), offline.begin(), offline.end());
+  run.results = std::move(results);
+  return run;
+}
+
+DiagnosticsCsv::DiagnosticsCsv(const std::string& path, const Localizer& localizer)
+    : out_(path,
+           {"frame", "timestamp_s", "gps_s_m", "db_frame", "db_s_m", "valid", "d", "signed_d",
+            "matches", "inliers", "failure", "online_db_frame", "fit_l_m", "fit_residual_m",
+            "reinitialised", "frame_seconds"}) {
+  for (int j = 0; j < localizer.num_db_frames(); ++j) {
+    db_frame_numbers_.push_back(localizer.db_frame_number(j));
+    db_s_m_.push_back(localizer.db_s_m(j));
+  }
+}
+
+void DiagnosticsCsv::Write(const FrameEstimate& est) {
+  const std::string online_frame =
+      est.db_index >= 0 ? std::to_string(db_frame_numbers_[est.db_index]) : "";
+  for (const PairResult& p : est.pairs) {
+    out_.WriteRow({std::to_string(est.frame), FormatDouble(est.timestamp_s),
+                   est.gnss_on_route ? FormatFixed(est.gnss_on_route->s_m, 3) : "",
+                   std::to_string(db_frame_numbers_[p.db_index]),
+                   FormatFixed(db_s_m_[p.db_index], 3), p.valid ? "1" : "0",
+                   p.valid ? FormatDouble(p.distance) : "",
+                   p.valid ? FormatDouble(p.signed_distance) : "", std::to_string(p.num_matches),
+                   std::to_string(p.num_inliers), p.failure, online_frame,
+                   est.fit.valid ? FormatFixed(est.fit.l_m, 3) : "",
+                   est.fit.valid ? FormatFixed(est.fit.rms_residual_m, 4) : "",
+                   est.reinitialised ? "1" : "0", FormatFixed(est.tracking_seconds, 4)});
+  }
+}
+
+void DiagnosticsCsv::Close() { out_.Close(); }
+
+}  // namespace epiloc

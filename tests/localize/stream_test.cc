@@ -1,0 +1,124 @@
+// The streaming Localizer API: frame by frame gives the batch rows, memory stays flat over a long
+// stream, and the offline rows need the recording.
+#include "epiloc/localize/stream.h"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "epiloc/io/drive.h"
+#include "epiloc/io/frame_reader.h"
+#include "localize/localize_test_util.h"
+#include "test_util.h"
+
+namespace epiloc {
+namespace {
+
+std::string Route() { return SharedRoute("epiloc_stream_test_v1", SmallStreetOptions()); }
+
+// Resident memory of this process, MB.
+double ResidentMb() {
+  std::ifstream statm("/proc/self/statm");
+  long pages = 0, resident = 0;
+  statm >> pages >> resident;
+  return resident * static_cast<double>(sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
+}
+
+std::string Key(const ResultRow& row) { return std::to_string(row.frame) + "/" + row.method; }
+
+TEST(Stream, TrackFrameByFrameGivesTheBatchRows) {
+  const std::string dir = Route();
+  LocalizeOptions options;
+  options.all_methods = true;
+  const LocalizeRun batch = Localize(dir + "/route.sqlite", dir + "/query", options);
+
+  // The same frames handed over one by one, without the pipeline.
+  const Drive drive = LoadDrive(dir + "/query");
+  const FrameReader reader(drive);
+  const FramePositions gnss = PositionFrames(drive, drive.gnss);
+  options.record_offline = true;
+  Localizer localizer(dir + "/route.sqlite", drive.camera, options);
+  std::vector<ResultRow> rows;
+  for (size_t i = 0; i < drive.frames.size(); ++i) {
+    QueryFrame frame;
+    frame.frame = drive.frames[i].frame;
+    frame.timestamp_s = drive.frames[i].timestamp_s;
+    frame.image = reader.ReadColour(i);  // colour in, as a camera delivers it
+    if (gnss.per_frame[i]) frame.gnss = gnss.per_frame[i]->position;
+    const FrameEstimate estimate = localizer.Track(frame);
+    EXPECT_EQ(estimate.frame, frame.frame);
+    const std::vector<ResultRow> frame_rows = localizer.Rows(estimate);
+    rows.insert(rows.end(), frame_rows.begin(), frame_rows.end());
+  }
+  const std::vector<ResultRow> offline = localizer.OfflineRows();
+  rows.insert(rows.end(), offline.begin(), offline.end());
+
+  ASSERT_EQ(rows.size(), batch.results.rows.size());
+  std::map<std::string, const ResultRow*> by_key;
+  for (const ResultRow& row : batch.results.rows) by_key[Key(row)] = &row;
+  int ok = 0;
+  for (const ResultRow& row : rows) {
+    ASSERT_EQ(by_key.count(Key(row)), 1u) << Key(row);
+    const ResultRow& other = *by_key[Key(row)];
+    EXPECT_EQ(row.status, other.status) << Key(row);
+    EXPECT_EQ(row.has_s, other.has_s) << Key(row);
+    // FLANN's kd-trees are randomised (std::random_device), so two runs may differ by a few
+    // matches: centimetres on this street.
+    if (row.has_s && other.has_s) EXPECT_NEAR(row.s_m, other.s_m, 0.15) << Key(row);
+    ok += row.status == ResultStatus::kOk ? 1 : 0;
+  }
+  EXPECT_GT(ok, static_cast<int>(rows.size()) * 9 / 10);
+}
+
+TEST(Stream, OfflineRowsNeedTheRecording) {
+  const std::string dir = Route();
+  const Drive drive = LoadDrive(dir + "/query");
+  LocalizeOptions options;
+  options.all_methods = true;
+  options.record_offline = false;
+  Localizer localizer(dir + "/route.sqlite", drive.camera, options);
+  EXPECT_THAT(ErrorOf([&] { localizer.OfflineRows(); }), ::testing::HasSubstr("record_offline"));
+}
+
+TEST(Stream, MemoryStaysFlatOverALongStream) {
+  const std::string dir = Route();
+  const Drive drive = LoadDrive(dir + "/query");
+  const FrameReader reader(drive);
+  const FramePositions gnss = PositionFrames(drive, drive.gnss);
+  std::vector<cv::Mat> images;
+  for (size_t i = 0; i < drive.frames.size(); ++i) images.push_back(reader.ReadGrey(i));
+  Localizer localizer(dir + "/route.sqlite", drive.camera, LocalizeOptions());
+  // The drive over and over, time running on: each pass ends the track at the route's end and
+  // starts it again at its beginning (a re-initialisation), as an endless loop of the street.
+  const double duration_s = drive.frames.back().timestamp_s - drive.frames.front().timestamp_s;
+  constexpr int kPasses = 6;
+  double after_first_mb = 0.0;
+  int localized = 0, total = 0;
+  for (int pass = 0; pass < kPasses; ++pass) {
+    for (size_t i = 0; i < drive.frames.size(); ++i) {
+      QueryFrame frame;
+      frame.frame = static_cast<frame_t>(pass * drive.frames.size() + i);
+      frame.timestamp_s = drive.frames[i].timestamp_s + pass * (duration_s + 10.0);
+      frame.image = images[i];
+      if (gnss.per_frame[i]) frame.gnss = gnss.per_frame[i]->position;
+      localized += localizer.Track(frame).status == TrackStatus::kOk ? 1 : 0;
+      ++total;
+    }
+    if (pass == 0) after_first_mb = ResidentMb();
+  }
+  const double growth_mb = ResidentMb() - after_first_mb;
+  std::cout << total << " frames, " << localized << " localized, resident memory after the first "
+            << "pass " << after_first_mb << " MB, growth over " << kPasses - 1 << " more passes "
+            << growth_mb << " MB\n";
+  EXPECT_GT(localized, total * 9 / 10);
+  // Per frame, a leak of even 100 kB would add > 20 MB over these passes.
+  EXPECT_LT(growth_mb, 15.0);
+}
+
+}  // namespace
+}  // namespace epiloc
