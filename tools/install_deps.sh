@@ -9,7 +9,7 @@ packages=(
   libsqlite3-dev sqlite3 libgeographiclib-dev
   libgtest-dev libgmock-dev
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
-  libxxhash-dev gnuplot-nox time
+  libxxhash-dev gnuplot-nox time python3
   libceres-dev
 )
 

@@ -1,0 +1,160 @@
+#!/usr/bin/env bash
+# The scenario suite: the localizer on synthetic "another day, another camera" variants of the
+# street and on the shared KITTI drive under several protocols, each run several times (other seeds
+# of the random parts), one table row per scenario with the WORST run's figures.
+#
+#   bash tools/bench_scenarios.sh [BUILD_DIR]
+#
+# Environment:
+#   EPILOC_SCENARIO_RUNS    runs per scenario (default 3; seeds 1..RUNS)
+#   EPILOC_SCENARIO_CACHE   generated worlds, imported drives and databases, reused across calls
+#                           (default BUILD_DIR/scenarios; delete it after changing the generator)
+#   EPILOC_SCENARIO_FILTER  extended regex: only scenarios whose name matches
+#   EPILOC_SCENARIO_ARGS    extra options for every `epiloc localize` (default none)
+#   EPILOC_KITTI_RAW        the KITTI drive (default ../shared/data/kitti_raw/.../drive_0005_sync;
+#                           its scenarios are skipped when it is absent)
+# A benchmark, not a test: it prints figures and exits 0 unless something crashes. Per-run
+# outputs (result CSV, evaluation JSON, logs) stay in the cache under runs/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build=${1:-build}
+runs=${EPILOC_SCENARIO_RUNS:-3}
+cache=${EPILOC_SCENARIO_CACHE:-$build/scenarios}
+filter=${EPILOC_SCENARIO_FILTER:-.}
+extra_args=${EPILOC_SCENARIO_ARGS:-}
+kitti=${EPILOC_KITTI_RAW:-../shared/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync}
+epiloc=$build/tools/epiloc
+if [[ ! -x $epiloc ]]; then
+  bash tools/install_deps.sh
+  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
+  cmake --build "$build" -j"$(nproc)" --target epiloc
+fi
+mkdir -p "$cache/runs"
+cache=$(cd "$cache" && pwd)
+log="$cache/suite.log"
+: > "$log"
+results="$cache/runs/table_input.tsv"
+: > "$results"
+suite_start=$(date +%s)
+
+say() { echo "[$(date +%H:%M:%S)] $*" | tee -a "$log" >&2; }
+
+# Runs a command quietly, its output appended to the suite log; on failure prints it and exits.
+quiet() {
+  if ! "$@" >> "$log" 2>&1; then
+    echo "bench_scenarios: failed: $*" >&2
+    tail -n 20 "$log" >&2
+    exit 1
+  fi
+}
+
+# A cached step: the directory (or file) $1 is made by the remaining command unless it exists;
+# the command writes into "$1.tmp" (removed first) which is renamed on success.
+cached() {
+  local target=$1
+  shift
+  [[ -e $target ]] && return 0
+  rm -rf "$target.tmp"
+  quiet "$@"
+  mv "$target.tmp" "$target"
+}
+
+# localize + evaluate one run: localize_run NAME RUN DB QUERY_DIR [localize options...]
+localize_run() {
+  local name=$1 run=$2 db=$3 query=$4
+  shift 4
+  local out="$cache/runs/${name}_run${run}"
+  mkdir -p "$out"
+  # shellcheck disable=SC2086
+  if ! /usr/bin/time -f "%M" -o "$out/max_rss_kb" "$epiloc" localize --db "$db" --drive "$query" \
+      --out "$out/result.csv" -q "$@" $extra_args > "$out/localize.log" 2>&1; then
+    echo "bench_scenarios: localize failed for $name run $run:" >&2
+    cat "$out/localize.log" >&2
+    exit 1
+  fi
+  quiet "$epiloc" evaluate --result "$out/result.csv" --truth "$query" --route "$db" \
+    --json "$out/summary.json" -q
+  local frames fps
+  frames=$(grep -oE ': [0-9]+ frames' "$out/localize.log" | head -1 | grep -oE '[0-9]+')
+  fps=$(grep -oE '[0-9.]+ frames/s' "$out/localize.log" | head -1 | grep -oE '^[0-9.]+')
+  printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$run" "$frames" "$fps" "$(cat "$out/max_rss_kb")" \
+    "$out/summary.json" >> "$results"
+}
+
+# synthetic NAME "WORLD_OPTIONS" "QUERY_OPTIONS": `epiloc synth` with both option sets; WORLD_OPTIONS
+# are those that change the world or the survey drive (the route database is shared by every
+# scenario with the same world options and seed), QUERY_OPTIONS change only the query drive.
+synthetic_length_m=${EPILOC_SCENARIO_LENGTH_M:-100}
+synthetic() {
+  local name=$1 world_options=$2 query_options=$3
+  [[ $name =~ $filter ]] || return 0
+  local world_key
+  world_key=$(echo "len$synthetic_length_m $world_options" | md5sum | cut -c1-10)
+  local query_key
+  query_key=$(echo "len$synthetic_length_m $world_options | $query_options" | md5sum | cut -c1-10)
+  for run in $(seq 1 "$runs"); do
+    local world="$cache/synth/${name}_${query_key}_seed$run"
+    local db="$cache/db/synth_${world_key}_seed$run.sqlite"
+    mkdir -p "$cache/synth" "$cache/db"
+    say "$name run $run: synth"
+    # shellcheck disable=SC2086
+    cached "$world" "$epiloc" synth --out "$world.tmp" --seed "$run" \
+      --length-m "$synthetic_length_m" --no-lidar -q $world_options $query_options
+    if [[ ! -e $db ]]; then
+      say "$name run $run: build-db"
+      rm -f "$db.tmp"
+      quiet "$epiloc" build-db --drive "$world/survey" --db "$db.tmp" -q
+      mv "$db.tmp" "$db"
+    fi
+    say "$name run $run: localize"
+    localize_run "$name" "$run" "$db" "$world/query"
+  done
+}
+
+# kitti NAME SURVEY_STEP QUERY_FRAMES GPS_NOISE [localize options...]: survey = camera 0, every
+# SURVEY_STEP-th frame, RTK positions; query = camera 1 frames QUERY_FRAMES (START:STOP:STEP)
+# with GPS noise GPS_NOISE m (seed = run).
+kitti() {
+  local name=$1 survey_step=$2 query_frames=$3 noise=$4
+  shift 4
+  [[ $name =~ $filter ]] || return 0
+  if [[ ! -d $kitti ]]; then
+    say "$name: skipped ($kitti not found)"
+    return 0
+  fi
+  mkdir -p "$cache/kitti"
+  local survey="$cache/kitti/survey_every$survey_step"
+  local db="$cache/kitti/survey_every$survey_step.sqlite"
+  cached "$survey" "$epiloc" import-kitti --raw "$kitti" --camera 0 \
+    --frames "0:154:$survey_step" --out "$survey.tmp" -q
+  if [[ ! -e $db ]]; then
+    say "$name: build-db (survey every $survey_step frames)"
+    rm -f "$db.tmp"
+    quiet "$epiloc" build-db --drive "$survey" --db "$db.tmp" -q
+    mv "$db.tmp" "$db"
+  fi
+  for run in $(seq 1 "$runs"); do
+    local query="$cache/kitti/query_${query_frames//:/_}_noise${noise}_seed$run"
+    cached "$query" "$epiloc" import-kitti --raw "$kitti" --camera 1 --frames "$query_frames" \
+      --gps-noise "$noise" --seed "$run" --out "$query.tmp" -q
+    say "$name run $run: localize"
+    localize_run "$name" "$run" "$db" "$query" "$@"
+  done
+}
+
+# ---- The scenarios ---------------------------------------------------------------------------
+synthetic synth_default "" ""
+
+kitti kitti_dev 2 1:154:2 3
+kitti kitti_survey_every1 1 1:154:2 3
+kitti kitti_survey_every4 4 1:154:2 3
+kitti kitti_query_every1 2 0:154:1 3
+kitti kitti_query_every3 2 1:154:3 3
+kitti kitti_gps1 2 1:154:2 1
+kitti kitti_gps10 2 1:154:2 10
+kitti kitti_no_gps 2 1:154:2 3 --no-gps
+
+# ---- The table -------------------------------------------------------------------------------
+elapsed=$(($(date +%s) - suite_start))
+python3 tools/scenario_table.py "$results" "$runs"
+echo "suite: ${elapsed} s on $(nproc) cores; outputs in $cache/runs"
