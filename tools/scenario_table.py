@@ -10,9 +10,17 @@ import sys
 from collections import OrderedDict
 
 
-def along(summary, method):
-    """Along-track statistics of a method, or None when it has no evaluated rows."""
-    m = summary["methods"].get(method)
+def method(summary, name):
+    """The evaluation of a method ({} when the result has no rows of it)."""
+    for m in summary["methods"]:
+        if m["method"] == name:
+            return m
+    return {}
+
+
+def along(summary, name):
+    """A method's evaluation when it has evaluated rows, else None."""
+    m = method(summary, name)
     if not m or m["counts"]["evaluated"] == 0:
         return None
     return m
@@ -41,7 +49,7 @@ def main():
         within = None
         for r in rs:
             online = along(r["summary"], "online")
-            counts = r["summary"]["methods"].get("online", {}).get("counts", {})
+            counts = method(r["summary"], "online").get("counts", {})
             ok = counts.get("ok", 0)
             localized = ok if localized is None else min(localized, ok)
             lost = r["frames"] - ok if lost is None else max(lost, r["frames"] - ok)
