@@ -1,5 +1,7 @@
 #include <algorithm>
 #include <cstdio>
+#include <optional>
+#include <vector>
 
 #include "cli_common.h"
 #include "epiloc/cli/commands.h"
@@ -7,6 +9,88 @@
 #include "epiloc/synth/drive_gen.h"
 
 namespace epiloc {
+namespace {
+
+// Appearance variants: what differs between the survey's day and the query's besides camera and
+// path (values as given on the command line; applied after the other options).
+struct AppearanceFlags {
+  double lead_vehicle_gap_m = 0.0;
+  int traffic = 0;
+  double query_parked_cars_changed = 0.0;
+  std::vector<double> survey_sun, query_sun;  // azimuth, elevation (degrees)
+  std::optional<double> survey_exposure, query_exposure;
+  std::vector<double> survey_white_balance, query_white_balance;  // r, g, b
+  double vegetation = 0.0;
+};
+
+void AddAppearanceFlags(CLI::App& app, AppearanceFlags& f) {
+  app.add_option("--lead-vehicle-gap-m", f.lead_vehicle_gap_m,
+                 "A lead vehicle, the same car in both drives, this far ahead of the camera "
+                 "(metres along the road to its back, 4-40; varies slowly and differently per "
+                 "drive, +-25 %); 0 = none")
+      ->capture_default_str();
+  app.add_option("--traffic", f.traffic,
+                 "Moving cars per drive, other ones in each drive (2/3 oncoming in the other "
+                 "lane, 1/3 ahead driving away)")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
+  app.add_option("--query-parked-cars-changed", f.query_parked_cars_changed,
+                 "Share of parking slots whose car is removed, added or replaced in the query's "
+                 "world (the worlds differ only by these cars)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--survey-sun", f.survey_sun,
+                 "Sun of the survey drive: AZ,EL degrees (azimuth clockwise from north, "
+                 "elevation 10-90): shading and cast shadows; none = unshaded")
+      ->delimiter(',')
+      ->expected(2);
+  app.add_option("--query-sun", f.query_sun, "Sun of the query drive: AZ,EL degrees (see above)")
+      ->delimiter(',')
+      ->expected(2);
+  app.add_option("--survey-exposure", f.survey_exposure,
+                 "Exposure gain of the survey frames (default 1)");
+  app.add_option("--query-exposure", f.query_exposure,
+                 "Exposure gain of the query frames (default 0.85)");
+  app.add_option("--survey-white-balance", f.survey_white_balance,
+                 "White balance of the survey frames: R,G,B channel gains (default 1,1,1)")
+      ->delimiter(',')
+      ->expected(3);
+  app.add_option("--query-white-balance", f.query_white_balance,
+                 "White balance of the query frames: R,G,B channel gains (default 1,1,1)")
+      ->delimiter(',')
+      ->expected(3);
+  app.add_option("--vegetation", f.vegetation,
+                 "Share of the road's length with hedges and rows of identical trees "
+                 "(repetitive foliage), on each side; part of the world")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+}
+
+void ApplyAppearanceFlags(const AppearanceFlags& f, SynthOptions& options) {
+  AppearanceOptions& a = options.appearance;
+  a.moving.lead_vehicle_gap_m = f.lead_vehicle_gap_m;
+  a.moving.traffic = f.traffic;
+  a.query_parked_cars_changed = f.query_parked_cars_changed;
+  const auto sun = [](const std::vector<double>& v) -> std::optional<SunOptions> {
+    if (v.empty()) return std::nullopt;
+    SunOptions s;
+    s.azimuth_deg = v[0];
+    s.elevation_deg = v[1];
+    return s;
+  };
+  a.survey_sun = sun(f.survey_sun);
+  a.query_sun = sun(f.query_sun);
+  if (f.survey_exposure) options.survey.render.exposure_gain = *f.survey_exposure;
+  if (f.query_exposure) options.query.render.exposure_gain = *f.query_exposure;
+  const auto white_balance = [](const std::vector<double>& v, RenderOptions& render) {
+    if (!v.empty()) render.white_balance_rgb = {v[0], v[1], v[2]};
+  };
+  white_balance(f.survey_white_balance, options.survey.render);
+  white_balance(f.query_white_balance, options.query.render);
+  options.world.vegetation.fraction = f.vegetation;
+}
+
+}  // namespace
 
 int RunSynth(int argc, char** argv) {
   CLI::App app(
@@ -48,13 +132,15 @@ int RunSynth(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--no-lidar", no_lidar, "Skip the LiDAR map");
   app.add_option("--threads", options.num_threads, "Rendering threads")->capture_default_str();
+  AppearanceFlags appearance;
+  AddAppearanceFlags(app, appearance);
   if (auto code = Parse(app, flags, argc, argv)) return *code;
 
   options.lidar = !no_lidar;
   if (query_length_m > 0) {
-    options.query.end_offset_m = std::max(
-        options.query.end_offset_m,
-        options.length_m - options.query.start_offset_m - query_length_m);
+    options.query.end_offset_m =
+        std::max(options.query.end_offset_m,
+                 options.length_m - options.query.start_offset_m - query_length_m);
   }
   if (no_distortion) options.query.camera.distortion.fill(0.0);
   if (clean_query) {
@@ -63,6 +149,7 @@ int RunSynth(int argc, char** argv) {
     options.query.wobble_yaw_deg = 0.0;
     options.query.wobble_pitch_deg = 0.0;
   }
+  ApplyAppearanceFlags(appearance, options);
   Progress progress("synth", 0);
   const SynthSummary summary = GenerateSynthetic(options, out_dir, progress.Callback());
   progress.Finish();

@@ -5,6 +5,7 @@
 #include <exception>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
 
@@ -54,6 +55,7 @@ struct DriveJob {
   std::vector<double> times;
   Renderer renderer;
   uint64_t seed = 0;
+  DriveScene scene;  // world, sun and moving cars of this drive
 };
 
 }  // namespace
@@ -62,6 +64,7 @@ void SynthOptions::Check() const {
   EPILOC_CHECK(std::isfinite(length_m) && length_m >= 30,
                "synth options: length_m = {} must be at least 30 m", length_m);
   ResolvedWorldOptions().Check();
+  appearance.Check();
   survey.Check("synth options: survey");
   query.Check("synth options: query");
   EPILOC_CHECK(query.start_offset_m + query.end_offset_m < length_m - 1,
@@ -85,7 +88,9 @@ SynthSummary GenerateSynthetic(const SynthOptions& options,
                                const ProgressCallback& progress) {
   const auto start = std::chrono::steady_clock::now();
   options.Check();
-  const World world = BuildWorld(options.ResolvedWorldOptions());
+  const auto survey_world =
+      std::make_shared<const World>(BuildWorld(options.ResolvedWorldOptions()));
+  const World& world = *survey_world;
   const EnuFrame world_frame(world.origin());
   const fs::path out(out_dir);
   std::error_code ec;
@@ -102,9 +107,12 @@ SynthSummary GenerateSynthetic(const SynthOptions& options,
     DrivePath path(world, *o, options.length_m, seed);
     std::vector<double> times = path.FrameTimes();
     drives.push_back({o, out / (index == 0 ? "survey" : "query"), std::move(path), std::move(times),
-                      Renderer(o->camera, o->render), seed});
+                      Renderer(o->camera, o->render), seed, DriveScene()});
     ++index;
   }
+  std::array<DriveScene, 2> scenes = MakeDriveScenes(options.appearance, survey_world,
+                                                     drives[0].path, drives[1].path, options.seed);
+  for (int d = 0; d < 2; ++d) drives[d].scene = scenes[d];
   const DrivePath& survey_path = drives[0].path;
   std::vector<Rigid3d> sensor_poses;
   std::vector<double> scan_times;
@@ -145,8 +153,8 @@ SynthSummary GenerateSynthetic(const SynthOptions& options,
     std::optional<Rigid3d> exposure_end;
     if (job.options->exposure_s > 0)
       exposure_end = job.path.CamFromWorld(t + 0.5 * job.options->exposure_s);
-    const RenderResult result = job.renderer.Render(world, job.path.CamFromWorld(t), exposure_end,
-                                                    MixSeed(job.seed, 1000000 + frame));
+    const RenderResult result = job.scene.Render(job.renderer, t, job.path.CamFromWorld(t),
+                                                 exposure_end, MixSeed(job.seed, 1000000 + frame));
     const std::string file = (job.dir / FrameImage(frame)).string();
     if (!cv::imwrite(file, result.image, png_params(*job.options))) {
       Throw("{}: cannot write image", file);
@@ -227,6 +235,9 @@ SynthSummary GenerateSynthetic(const SynthOptions& options,
   }
 
   WriteWorldJson(world, (out / "world.json").string());
+  WriteAppearance(out.string(), options.appearance, options.world.vegetation,
+                  {options.survey.render, options.query.render}, scenes,
+                  {drives[0].times, drives[1].times});
   std::vector<TopViewTrack> tracks;
   for (int d = 0; d < 2; ++d) {
     TopViewTrack track;

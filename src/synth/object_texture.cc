@@ -287,4 +287,12 @@ Texture CarTexture(int face,
   return texture;
 }
 
+cv::Vec3b CarPaint(Rng& rng) {
+  static const std::array<cv::Vec3b, 8> kPaint = {
+      cv::Vec3b(235, 235, 235), cv::Vec3b(180, 180, 175), cv::Vec3b(30, 30, 30),
+      cv::Vec3b(40, 40, 170),   cv::Vec3b(140, 70, 20),   cv::Vec3b(90, 90, 90),
+      cv::Vec3b(50, 90, 40),    cv::Vec3b(120, 170, 200)};
+  return kPaint[rng.UniformInt(0, kPaint.size() - 1)];
+}
+
 }  // namespace epiloc

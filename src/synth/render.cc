@@ -47,6 +47,7 @@ Linear FromNormalized(const Eigen::Vector3d& v, const Camera& cam) {
 // Per-frame set-up of one quad: everything in pixel coordinates of the render camera.
 struct QuadSetup {
   int surface = -1;
+  const Texture* texture = nullptr;
   Linear w;                           // inverse depth 1/z (1/m)
   Linear tu, tv;                      // level-0 texel coordinates times w
   double det = 0;                     // |det [tu; tv; w]|: texel area per pixel area is det / w^3
@@ -110,15 +111,14 @@ std::vector<Eigen::Vector3d> ClipNear(const std::array<Eigen::Vector3d, 4>& poly
   return out;
 }
 
-bool SetUpQuad(const World& world,
+bool SetUpQuad(const Surface& s,
+               const Texture& texture,
                int index,
                const Camera& cam,
                const Eigen::Matrix3d& r,
                const Eigen::Vector3d& t,
                double near,
                QuadSetup* q) {
-  const Surface& s = world.surfaces[index];
-  if (s.texture < 0) return false;
   std::array<Eigen::Vector3d, 4> corners;
   for (int i = 0; i < 4; ++i) corners[i] = r * s.corners_in_world[i] + t;
   const std::vector<Eigen::Vector3d> clipped = ClipNear(corners, near);
@@ -142,7 +142,6 @@ bool SetUpQuad(const World& world,
   const Eigen::Vector3d n = r * s.Normal();
   const double d = s.PlaneOffset() + n.dot(t);
   if (std::abs(d) < 1e-9) return false;  // the camera lies in the plane
-  const Texture& texture = world.textures[s.texture];
   const double mpp = texture.metres_per_pixel;
   const Eigen::Vector3d w = n / d;
   const Eigen::Vector3d u_c = r * s.u_axis, v_c = r * s.v_axis;
@@ -151,6 +150,7 @@ bool SetUpQuad(const World& world,
   const Eigen::Vector3d tu = (u_c - u_c.dot(o_c) * w) / mpp - 0.5 * w;
   const Eigen::Vector3d tv = (v_c - v_c.dot(o_c) * w) / mpp - 0.5 * w;
   q->surface = index;
+  q->texture = &texture;
   q->w = FromNormalized(w, cam);
   q->tu = FromNormalized(tu, cam);
   q->tv = FromNormalized(tv, cam);
@@ -178,13 +178,9 @@ bool SetUpQuad(const World& world,
 }
 
 // Rasterises one quad into the colour, inverse-depth and id buffers.
-void Rasterise(const World& world,
-               const QuadSetup& q,
-               bool mipmapping,
-               cv::Mat& colour,
-               cv::Mat& inverse_depth,
-               cv::Mat& ids) {
-  const Texture& texture = world.textures[world.surfaces[q.surface].texture];
+void Rasterise(
+    const QuadSetup& q, bool mipmapping, cv::Mat& colour, cv::Mat& inverse_depth, cv::Mat& ids) {
+  const Texture& texture = *q.texture;
   constexpr double kTolerancePx = 1e-4;  // shared edges are covered by both quads, never neither
   for (int y = q.y0; y <= q.y1; ++y) {
     double lo = q.x0, hi = q.x1;
@@ -229,6 +225,10 @@ void RenderOptions::Check() const {
   EPILOC_CHECK(noise_sigma >= 0 && std::isfinite(noise_sigma),
                "render options: noise_sigma must not be negative");
   EPILOC_CHECK(max_blur_taps >= 1, "render options: max_blur_taps must be >= 1");
+  for (const double gain : white_balance_rgb) {
+    EPILOC_CHECK(gain > 0 && std::isfinite(gain),
+                 "render options: white balance gains must be positive, not {}", gain);
+  }
 }
 
 cv::Vec3f SkyColour(const Eigen::Vector3d& direction_in_world) {
@@ -300,7 +300,8 @@ Renderer::Renderer(const Camera& camera, const RenderOptions& options)
 RenderResult Renderer::Render(const World& world,
                               const Rigid3d& cam_from_world,
                               const std::optional<Rigid3d>& cam_from_world_exposure_end,
-                              std::optional<uint64_t> noise_seed) const {
+                              std::optional<uint64_t> noise_seed,
+                              const RenderExtras& extras) const {
   const Camera& cam = supersampled_;
   const Eigen::Matrix3d r = cam_from_world.rotation.toRotationMatrix();
   const Eigen::Vector3d t = cam_from_world.translation;
@@ -328,11 +329,20 @@ RenderResult Renderer::Render(const World& world,
     }
   }
   std::vector<QuadSetup> quads;
-  std::vector<Eigen::Vector3d> inverse_depth_of(world.surfaces.size(), Eigen::Vector3d::Zero());
-  for (int i = 0; i < static_cast<int>(world.surfaces.size()); ++i) {
+  const int num_world = static_cast<int>(world.surfaces.size());
+  const int num_extra = extras.surfaces ? static_cast<int>(extras.surfaces->size()) : 0;
+  EPILOC_CHECK(num_extra == 0 || extras.textures, "render: extra surfaces without textures");
+  EPILOC_CHECK(!extras.lighting || extras.lighting->num_world_surfaces() == num_world,
+               "render: the lighting was built for another world ({} surfaces, not {})",
+               extras.lighting ? extras.lighting->num_world_surfaces() : 0, num_world);
+  std::vector<Eigen::Vector3d> inverse_depth_of(num_world + num_extra, Eigen::Vector3d::Zero());
+  for (int i = 0; i < num_world + num_extra; ++i) {
+    const Surface& s = i < num_world ? world.surfaces[i] : (*extras.surfaces)[i - num_world];
+    if (s.texture < 0) continue;
+    const Texture& texture =
+        i < num_world ? world.textures[s.texture] : extras.textures->at(s.texture);
     QuadSetup q;
-    if (!SetUpQuad(world, i, cam, r, t, options_.near_m, &q)) continue;
-    const Surface& s = world.surfaces[i];
+    if (!SetUpQuad(s, texture, i, cam, r, t, options_.near_m, &q)) continue;
     // The ground lies under everything: drawn last, it is mostly rejected by the depth test.
     if (s.kind == SurfaceKind::kGround) q.nearest_z = std::numeric_limits<double>::infinity();
     quads.push_back(q);
@@ -343,7 +353,10 @@ RenderResult Renderer::Render(const World& world,
   std::sort(quads.begin(), quads.end(),
             [](const QuadSetup& a, const QuadSetup& b) { return a.nearest_z < b.nearest_z; });
   for (const QuadSetup& q : quads) {
-    Rasterise(world, q, options_.mipmapping, colour, inverse_depth, ids);
+    Rasterise(q, options_.mipmapping, colour, inverse_depth, ids);
+  }
+  if (extras.lighting) {
+    extras.lighting->Shade(cam, cam_from_world, extras.surfaces, ids, inverse_depth, &colour);
   }
 
   if (options_.supersampling > 1) {
@@ -412,6 +425,10 @@ RenderResult Renderer::Render(const World& world,
     }
   }
   if (options_.exposure_gain != 1.0) colour *= options_.exposure_gain;
+  const std::array<double, 3>& wb = options_.white_balance_rgb;
+  if (wb[0] != 1.0 || wb[1] != 1.0 || wb[2] != 1.0) {
+    colour = colour.mul(cv::Scalar(wb[2], wb[1], wb[0]));  // BGR
+  }
   if (options_.noise_sigma > 0) {
     // A window of the renderer's noise tile at a random offset: Gaussian per pixel, and much
     // cheaper than drawing new numbers for every frame.

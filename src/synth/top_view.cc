@@ -13,7 +13,7 @@ cv::Mat DrawTopView(const World& world, const std::vector<TopViewTrack>& tracks,
   // Extent: the road and its buildings, not the ground around them.
   Eigen::Vector2d lo(1e18, 1e18), hi(-1e18, -1e18);
   for (const Surface& s : world.surfaces) {
-    if (s.kind == SurfaceKind::kGround) continue;
+    if (s.kind == SurfaceKind::kGround || s.texture < 0) continue;
     for (const Eigen::Vector3d& c : s.corners_in_world) {
       lo = lo.cwiseMin(c.head<2>());
       hi = hi.cwiseMax(c.head<2>());
@@ -37,9 +37,10 @@ cv::Mat DrawTopView(const World& world, const std::vector<TopViewTrack>& tracks,
   const int line = std::max(1, static_cast<int>(std::lround(scale * 0.4)));
   for (const SurfaceKind kind :
        {SurfaceKind::kSidewalk, SurfaceKind::kRoad, SurfaceKind::kBackground, SurfaceKind::kWall,
-        SurfaceKind::kFacade, SurfaceKind::kCar, SurfaceKind::kPole, SurfaceKind::kSign}) {
+        SurfaceKind::kFacade, SurfaceKind::kCar, SurfaceKind::kHedge, SurfaceKind::kTreeCrown,
+        SurfaceKind::kPole, SurfaceKind::kSign}) {
     for (const Surface& s : world.surfaces) {
-      if (s.kind != kind) continue;
+      if (s.kind != kind || s.texture < 0) continue;
       const std::array<Eigen::Vector3d, 4>& c = s.corners_in_world;
       switch (kind) {
         case SurfaceKind::kSidewalk:
@@ -50,6 +51,10 @@ cv::Mat DrawTopView(const World& world, const std::vector<TopViewTrack>& tracks,
           break;
         case SurfaceKind::kCar:
           if (std::abs(s.Normal().z()) > 0.5) fill(s, cv::Scalar(180, 120, 60));
+          break;
+        case SurfaceKind::kHedge:
+        case SurfaceKind::kTreeCrown:
+          if (std::abs(s.Normal().z()) > 0.5) fill(s, cv::Scalar(40, 120, 50));
           break;
         case SurfaceKind::kFacade:
         case SurfaceKind::kWall:

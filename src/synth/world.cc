@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "epiloc/core/error.h"
+#include "vegetation.h"
 
 namespace epiloc {
 namespace {
@@ -340,21 +341,20 @@ void WorldBuilder::AddCars(int side) {
   const WorldOptions& o = world_.options;
   const Centreline& cl = world_.centreline;
   const double d_centre = side * (o.road.lane_width_m + 0.5 * o.road.parking_width_m);
-  static const std::array<cv::Vec3b, 8> kPaint = {
-      cv::Vec3b(235, 235, 235), cv::Vec3b(180, 180, 175), cv::Vec3b(30, 30, 30),
-      cv::Vec3b(40, 40, 170),   cv::Vec3b(140, 70, 20),   cv::Vec3b(90, 90, 90),
-      cv::Vec3b(50, 90, 40),    cv::Vec3b(120, 170, 200)};
   for (double s = SBegin() + 3; s < SEnd() - 3; s += 6.0) {
     bool free = true;
     for (const double sc : world_.crossings_s_m) free = free && (s < sc - 10 || s > sc + 14);
-    if (!free || !rng_.Bernoulli(o.car_probability)) continue;
+    if (!free) continue;
+    world_.parking_slots.push_back({s, side, -1});
+    if (!rng_.Bernoulli(o.car_probability)) continue;
+    world_.parking_slots.back().first_surface = static_cast<int>(world_.surfaces.size());
     const double length = rng_.Uniform(3.9, 4.8), width = rng_.Uniform(1.7, 1.9);
     const double height = rng_.Uniform(1.4, 1.6), z0 = 0.03;
     const double sc = s + rng_.Uniform(-0.5, 0.5);
     const Eigen::Vector2d c = cl.PointAt(sc, d_centre + rng_.Uniform(-0.15, 0.15));
     const double yaw = cl.YawAt(sc) + rng_.Uniform(-2, 2) * kDeg + (side > 0 ? M_PI : 0.0);
     const Eigen::Vector2d fwd(std::cos(yaw), std::sin(yaw)), left(-fwd.y(), fwd.x());
-    cv::Vec3b paint = kPaint[rng_.UniformInt(0, kPaint.size() - 1)];
+    const cv::Vec3b paint = CarPaint(rng_);
     const auto tex = [&](int face, double w, double h) {
       return AddTexture(
           [=, seed = NextSeed()] { return CarTexture(face, w, h, 60.0, paint, seed); });
@@ -420,6 +420,8 @@ World WorldBuilder::Build() {
       world_.markers.push_back(marker);
     }
   }
+  // Last, from its own random stream: without vegetation the world is the same as before.
+  if (world_.options.vegetation.fraction > 0) AddVegetation(&world_);
   return std::move(world_);
 }
 
@@ -447,6 +449,12 @@ const char* SurfaceKindName(SurfaceKind kind) {
       return "sign";
     case SurfaceKind::kCar:
       return "car";
+    case SurfaceKind::kHedge:
+      return "hedge";
+    case SurfaceKind::kTreeTrunk:
+      return "tree_trunk";
+    case SurfaceKind::kTreeCrown:
+      return "tree_crown";
   }
   return "?";
 }
@@ -519,6 +527,7 @@ void WorldOptions::Check() const {
   positive(sidewalk_pixels_per_m, "sidewalk_pixels_per_m");
   positive(ground_pixels_per_m, "ground_pixels_per_m");
   EPILOC_CHECK(num_threads >= 1, "world options: num_threads must be >= 1");
+  vegetation.Check();
 }
 
 World BuildWorld(const WorldOptions& options) {

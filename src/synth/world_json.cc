@@ -49,7 +49,11 @@ void WriteWorldJson(const World& world, const std::string& path) {
                   {"facade_pixels_per_m", o.facade_pixels_per_m},
                   {"road_pixels_per_m", o.road_pixels_per_m},
                   {"sidewalk_pixels_per_m", o.sidewalk_pixels_per_m},
-                  {"ground_pixels_per_m", o.ground_pixels_per_m}};
+                  {"ground_pixels_per_m", o.ground_pixels_per_m},
+                  {"vegetation_fraction", o.vegetation.fraction},
+                  {"vegetation_stretch_length_m", o.vegetation.stretch_length_m},
+                  {"tree_spacing_m", o.vegetation.tree_spacing_m},
+                  {"foliage_period_m", o.vegetation.foliage_period_m}};
   Json pieces = Json::array();
   for (const CentrelinePiece& p : world.centreline.pieces()) {
     pieces.push_back({{"s0_m", p.s0_m},
@@ -67,18 +71,33 @@ void WriteWorldJson(const World& world, const std::string& path) {
         {{"position", Vec(m.position_in_world)}, {"surface", m.surface}, {"square_m", m.square_m}});
   }
   j["markers"] = markers;
+  Json slots = Json::array();
+  for (const ParkingSlot& p : world.parking_slots) {
+    slots.push_back({{"s_m", p.s_m}, {"side", p.side}, {"first_surface", p.first_surface}});
+  }
+  j["parking_slots"] = slots;
+  Json vegetation = Json::array();
+  for (const VegetationStretch& v : world.vegetation) {
+    vegetation.push_back({{"side", v.side}, {"s0_m", v.s0_m}, {"s1_m", v.s1_m}});
+  }
+  j["vegetation"] = vegetation;
   Json surfaces = Json::array();
   for (const Surface& s : world.surfaces) {
     Json corners = Json::array();
     for (const Eigen::Vector3d& c : s.corners_in_world) corners.push_back(Vec(c));
-    const Texture& t = world.textures[s.texture];
-    surfaces.push_back({{"kind", SurfaceKindName(s.kind)},
-                        {"corners", corners},
-                        {"texture_origin", Vec(s.texture_origin_in_world)},
-                        {"u_axis", Vec(s.u_axis)},
-                        {"v_axis", Vec(s.v_axis)},
-                        {"texture_size_px", {t.image.cols, t.image.rows}},
-                        {"metres_per_pixel", t.metres_per_pixel}});
+    Json surface = {{"kind", SurfaceKindName(s.kind)},
+                    {"corners", corners},
+                    {"texture_origin", Vec(s.texture_origin_in_world)},
+                    {"u_axis", Vec(s.u_axis)},
+                    {"v_axis", Vec(s.v_axis)}};
+    if (s.texture >= 0) {
+      const Texture& t = world.textures[s.texture];
+      surface["texture_size_px"] = {t.image.cols, t.image.rows};
+      surface["metres_per_pixel"] = t.metres_per_pixel;
+    } else {
+      surface["hidden"] = true;  // e.g. a parked car taken away (the query's world)
+    }
+    surfaces.push_back(surface);
   }
   j["surfaces"] = surfaces;
   std::ofstream out(path);

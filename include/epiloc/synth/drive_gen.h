@@ -10,6 +10,8 @@
 //   lidar/map.ply      all LiDAR points in the world ENU frame (x y z intensity rgb)
 //   lidar/scans.csv    scan number, time, sensor position (geodetic and world ENU) and
 //                      orientation (enu_from_sensor, local ENU, quaternion w x y z)
+//   appearance.json, survey|query/moving_objects.csv, query/world.json,
+//   query/parked_cars_changed.csv   the appearance variants (WriteAppearance)
 #pragma once
 
 #include <string>
@@ -18,6 +20,7 @@
 #include <opencv2/core.hpp>
 
 #include "epiloc/core/progress.h"
+#include "epiloc/synth/appearance.h"
 #include "epiloc/synth/lidar.h"
 #include "epiloc/synth/trajectory.h"
 #include "epiloc/synth/world.h"
@@ -35,6 +38,10 @@ struct SynthOptions {
   bool lidar_scan_files = false;  // also write each scan (sensor frame) into survey/lidar/
   int num_threads = 2;            // rendering and scanning threads
   int png_compression = 1;        // PNG compression level of the frames (0-9)
+
+  // Appearance variants (all off by default): moving cars, parked cars changed, sun per drive.
+  // Vegetation: world.vegetation; exposure and white balance: survey/query.render.
+  AppearanceOptions appearance;
 
   // Throws Error naming the first invalid field.
   void Check() const;

@@ -7,9 +7,11 @@
 // from mip levels chosen by the per-pixel texture footprint. Lens distortion is applied
 // afterwards by remapping with Camera's model, so a world point X always appears at
 // camera.Project(cam_from_world * X). Optional: supersampling, motion blur along the per-pixel
-// image motion, exposure gain, Gaussian noise.
+// image motion, exposure gain, white balance, Gaussian noise; moving surfaces and sunlight with
+// cast shadows (RenderExtras).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -18,6 +20,7 @@
 
 #include "epiloc/camera/camera.h"
 #include "epiloc/geo/rigid3.h"
+#include "epiloc/synth/lighting.h"
 #include "epiloc/synth/world.h"
 
 namespace epiloc {
@@ -33,6 +36,10 @@ struct RenderOptions {
   bool depth = false;          // also return the depth image
   bool surface_ids = false;    // also return the surface index image
 
+  // Appearance variants.
+  // Per-channel gains (red, green, blue) after exposure_gain: the camera's white balance.
+  std::array<double, 3> white_balance_rgb = {1.0, 1.0, 1.0};
+
   // Throws Error naming the first invalid field.
   void Check() const;
 };
@@ -40,7 +47,18 @@ struct RenderOptions {
 struct RenderResult {
   cv::Mat image;       // CV_8UC3, BGR, the camera's size
   cv::Mat depth;       // CV_32F, z in the camera frame (metres); 0 where only sky is seen
-  cv::Mat surface_id;  // CV_32S, index into World::surfaces; -1 for sky
+  cv::Mat surface_id;  // CV_32S, index into World::surfaces (or RenderExtras); -1 for sky
+};
+
+// Optional additions to one rendering (appearance variants). None: the static world, unshaded.
+struct RenderExtras {
+  // Surfaces posed in the world for this frame (moving cars), drawn with the world's; their
+  // `texture` fields index `textures`. In RenderResult::surface_id, (*surfaces)[k] has index
+  // world.surfaces.size() + k.
+  const std::vector<Surface>* surfaces = nullptr;
+  const std::vector<Texture>* textures = nullptr;
+  // Sun shading and cast shadows, built for the same world (see lighting.h).
+  const Lighting* lighting = nullptr;
 };
 
 // Renders one world into one camera. Construction precomputes the distortion maps; Render() is
@@ -56,11 +74,13 @@ class Renderer {
   // `cam_from_world_exposure_end`, when given, is the pose at the end of the exposure: the image
   // is blurred along each pixel's motion, symmetrically about the pose at mid-exposure
   // (cam_from_world), so the sharp geometry stays at the frame's pose. `noise_seed`, when given,
-  // replaces options().noise_seed (one seed per frame).
+  // replaces options().noise_seed (one seed per frame). `extras` adds moving surfaces and the sun;
+  // without them the rendering costs what it always did.
   RenderResult Render(const World& world,
                       const Rigid3d& cam_from_world,
                       const std::optional<Rigid3d>& cam_from_world_exposure_end = std::nullopt,
-                      std::optional<uint64_t> noise_seed = std::nullopt) const;
+                      std::optional<uint64_t> noise_seed = std::nullopt,
+                      const RenderExtras& extras = RenderExtras()) const;
 
  private:
   Camera camera_;

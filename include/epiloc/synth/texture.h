@@ -93,6 +93,17 @@ Texture CarTexture(int face,
                    double pixels_per_m,
                    const cv::Vec3b& body_bgr,
                    uint64_t seed);
+// A car paint colour of a palette of common ones.
+cv::Vec3b CarPaint(Rng& rng);
+// Foliage (hedges, tree crowns) or bark: a random pattern of `period_px` x `period_px` texels
+// repeated over `size` texels, so texel (x, y) equals texel (x + period_px, y) and
+// (x, y + period_px) (`bark`: vertical streaks of brown instead of leaves).
+Texture VegetationTexture(cv::Size size,
+                          int period_px,
+                          double metres_per_pixel,
+                          bool bark,
+                          const cv::Vec3b& base_bgr,
+                          uint64_t seed);
 
 // Painted road symbol (text, arrow, manhole cover, crack, patch) placed in road coordinates:
 // the stamp image's top row lies at s1 and its left column at d1 (as a driver reads it).

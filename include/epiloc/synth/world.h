@@ -32,6 +32,10 @@ enum class SurfaceKind {
   kPole,        // street lamp / sign pole side
   kSign,        // sign board (front or back)
   kCar,         // face of a parked car
+  // Appearance variants.
+  kHedge,      // face of a hedge (vegetation)
+  kTreeTrunk,  // side of a tree trunk
+  kTreeCrown,  // face of a tree crown (a box of foliage)
 };
 const char* SurfaceKindName(SurfaceKind kind);
 
@@ -42,7 +46,7 @@ const char* SurfaceKindName(SurfaceKind kind);
 struct Surface {
   SurfaceKind kind = SurfaceKind::kGround;
   std::array<Eigen::Vector3d, 4> corners_in_world;  // coplanar, convex, in order around the edge
-  int texture = -1;                                 // index into World::textures
+  int texture = -1;  // index into World::textures; -1: hidden (e.g. a parked car taken away)
   Eigen::Vector3d texture_origin_in_world = Eigen::Vector3d::Zero();
   Eigen::Vector3d u_axis = Eigen::Vector3d::UnitX();  // unit, along texture columns
   Eigen::Vector3d v_axis = Eigen::Vector3d::UnitY();  // unit, along texture rows, orthogonal to u
@@ -64,6 +68,17 @@ struct Marker {
   Eigen::Vector3d position_in_world = Eigen::Vector3d::Zero();
   int surface = -1;       // index into World::surfaces
   double square_m = 0.0;  // side of one checkerboard square
+};
+
+// Hedges and rows of identical, evenly spaced trees along stretches of the road: repetitive
+// texture, part of the world (both drives see it).
+struct VegetationOptions {
+  double fraction = 0.0;           // share of the road's length with vegetation, on each side
+  double stretch_length_m = 40.0;  // one stretch (a park front, an avenue)
+  double tree_spacing_m = 7.0;     // trunks evenly spaced along a stretch
+  double foliage_period_m = 0.5;   // hedge and crown textures repeat with this period (u and v)
+
+  void Check() const;
 };
 
 struct WorldOptions {
@@ -96,8 +111,24 @@ struct WorldOptions {
   double ground_pixels_per_m = 4.0;
   int num_threads = 2;  // texture generation threads (the result does not depend on it)
 
+  // Appearance variants (off by default: the world is then exactly the one without them).
+  VegetationOptions vegetation;
+
   // Throws Error naming the first invalid field.
   void Check() const;
+};
+
+// A parking slot (6 m of a parking strip) and the car parked in it.
+struct ParkingSlot {
+  double s_m = 0.0;        // along-road distance of the slot's centre
+  int side = -1;           // -1: right of the travel direction, +1: left
+  int first_surface = -1;  // the car's five surfaces start here in World::surfaces; -1: empty
+};
+
+// A stretch of road side with a hedge and a tree row.
+struct VegetationStretch {
+  int side = -1;  // -1: right of the travel direction, +1: left
+  double s0_m = 0.0, s1_m = 0.0;
 };
 
 struct World {
@@ -107,6 +138,9 @@ struct World {
   std::vector<Texture> textures;  // with mip levels
   std::vector<Marker> markers;
   std::vector<double> crossings_s_m;  // zebra crossings (start of the stripes)
+  // Appearance variants.
+  std::vector<ParkingSlot> parking_slots;     // free slots in order of s, per side
+  std::vector<VegetationStretch> vegetation;  // in order of side, then s
 
   const Geodetic& origin() const { return options.origin; }
   // Road-surface height at a horizontal position (0: the road is flat).
@@ -120,8 +154,9 @@ struct World {
 // Builds the world for `options` (calls options.Check()). Takes ~2 s for 300 m on 2 threads.
 World BuildWorld(const WorldOptions& options);
 
-// Writes the options, centreline pieces, markers and surfaces (kind, corners, texture size) as
-// JSON. Throws Error if the file cannot be written.
+// Writes the options, centreline pieces, markers, parking slots, vegetation stretches and surfaces
+// (kind, corners, texture size; hidden ones flagged) as JSON. Throws Error if the file cannot be
+// written.
 void WriteWorldJson(const World& world, const std::string& path);
 
 }  // namespace epiloc
