@@ -15,8 +15,11 @@
 
 #include <Eigen/Core>
 
+#include <optional>
 #include "epiloc/geo/geodetic.h"
+
 #include "epiloc/synth/centreline.h"
+#include "epiloc/synth/side_street.h"
 #include "epiloc/synth/texture.h"
 
 namespace epiloc {
@@ -74,10 +77,10 @@ struct WorldOptions {
   double margin_after_m = 100.0;      // ... and after s = length (what the last frames see)
   double min_straight_m = 30.0;       // straight pieces between curves, random length in [min, max]
   double max_straight_m = 80.0;
-  double min_radius_m = 60.0;  // curve radius, random in [min, max]
-  double max_radius_m = 180.0;
-  double max_turn_deg = 55.0;         // turn of one curve, random in [15, max]
-  RoadProfile road;                   // lanes, parking strips, pavements, kerb
+  double min_radius_m = 60.0;   // curve radius, random in [min, max] (min: the pavement's outer
+  double max_radius_m = 180.0;  // edge stays 5 m from the centre of the tightest curve)
+  double max_turn_deg = 55.0;   // turn of one curve, random in [15, max]
+  RoadProfile road;             // lanes, parking strips, pavements, kerb
   double min_building_width_m = 8.0;  // building fronts along the road
   double max_building_width_m = 22.0;
   double min_building_height_m = 7.0;
@@ -96,6 +99,9 @@ struct WorldOptions {
   double ground_pixels_per_m = 4.0;
   int num_threads = 2;  // texture generation threads (the result does not depend on it)
 
+  // Side street joining from the right (issue 14's turn-in drives); built when enabled.
+  SideStreetOptions side_street;
+
   // Throws Error naming the first invalid field.
   void Check() const;
 };
@@ -106,7 +112,8 @@ struct World {
   std::vector<Surface> surfaces;
   std::vector<Texture> textures;  // with mip levels
   std::vector<Marker> markers;
-  std::vector<double> crossings_s_m;  // zebra crossings (start of the stripes)
+  std::vector<double> crossings_s_m;      // zebra crossings (start of the stripes)
+  std::optional<SideStreet> side_street;  // when options.side_street.enabled
 
   const Geodetic& origin() const { return options.origin; }
   // Road-surface height at a horizontal position (0: the road is flat).
