@@ -20,8 +20,9 @@ struct VariantFlags {
   std::string camera, size, distortion, stops, sections;
   double hfov_deg = 0.0, stop_at_end_s = -1.0, turn_in_deg = 0.0;
   bool sharp_curves = false;
-  bool rate_given = false;  // --query-rate-hz given: it wins over the camera preset's rate
-  double exposure_s = 0.0;  // --query-exposure-s as parsed
+  bool rate_given = false;    // --query-rate-hz given: it wins over the camera preset's rate
+  bool motion_given = false;  // a speed profile option given: constant acceleration per step
+  double exposure_s = 0.0;    // --query-exposure-s as parsed
 };
 
 void AddVariantOptions(CLI::App& app, VariantFlags& v, SynthOptions& o) {
@@ -179,6 +180,7 @@ void ApplyVariants(const VariantFlags& v, bool no_distortion, SynthOptions& o) {
     o.query.end_stop_s = v.stop_at_end_s;
     o.query.still_when_stopped = true;
   }
+  if (v.motion_given) o.query.constant_acceleration = true;
   if (v.turn_in_deg > 0) {
     o.world.side_street.enabled = true;
     o.world.side_street.angle_deg = v.turn_in_deg;
@@ -239,6 +241,11 @@ int RunSynth(int argc, char** argv) {
   AddVariantOptions(app, variants, options);
   if (auto code = Parse(app, flags, argc, argv)) return *code;
   variants.rate_given = app.count("--query-rate-hz") > 0;
+  for (const char* motion :
+       {"--query-stops", "--query-speed-sections", "--query-start-from-rest", "--query-stop-at-end",
+        "--query-creep-mps", "--query-max-accel-mps2", "--query-turn-in-deg"}) {
+    variants.motion_given = variants.motion_given || app.count(motion) > 0;
+  }
   variants.exposure_s = options.query.exposure_s;  // --clean-query must not undo it
 
   options.lidar = !no_lidar;

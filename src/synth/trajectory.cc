@@ -233,11 +233,13 @@ DrivePath::DrivePath(const World& world,
     times_.push_back(t);
     s_.push_back(s[i]);
     moving_.push_back(moving);
+    v_.push_back(v[i]);
     if (dwell[i] > 0) {
       t += dwell[i];
       times_.push_back(t);
       s_.push_back(s[i]);
       moving_.push_back(moving);
+      v_.push_back(v[i]);
     }
   }
   Rng rng(MixSeed(seed, 77));
@@ -272,7 +274,13 @@ double DrivePath::SAt(double timestamp_s) const {
   const size_t i = std::upper_bound(times_.begin(), times_.end(), t) - times_.begin();
   const double dt = times_[i] - times_[i - 1];
   if (dt <= 0) return s_[i];
-  return s_[i - 1] + (s_[i] - s_[i - 1]) * (t - times_[i - 1]) / dt;
+  const double tau = t - times_[i - 1];
+  if (options_.constant_acceleration) {
+    // The step's time 2 ds / (v0 + v1) is that of constant acceleration (v1 - v0) / dt.
+    const double accel = (v_[i] - v_[i - 1]) / dt;
+    return std::min(s_[i], s_[i - 1] + tau * (v_[i - 1] + 0.5 * accel * tau));
+  }
+  return s_[i - 1] + (s_[i] - s_[i - 1]) * tau / dt;
 }
 
 double DrivePath::TimeAtS(double s_m) const {
@@ -280,6 +288,14 @@ double DrivePath::TimeAtS(double s_m) const {
   if (s_m >= s_.back()) return options_.start_time_s + times_.back();
   const size_t i = std::lower_bound(s_.begin(), s_.end(), s_m) - s_.begin();
   const double ds = s_[i] - s_[i - 1];
+  const double dt = times_[i] - times_[i - 1];
+  if (options_.constant_acceleration && ds > 0) {
+    // Solve s - s0 = v0 tau + a tau^2 / 2 for the first tau >= 0 (a stable form of the root).
+    const double accel = (v_[i] - v_[i - 1]) / dt, d = s_m - s_[i - 1];
+    const double root = std::sqrt(std::max(0.0, v_[i - 1] * v_[i - 1] + 2 * accel * d));
+    const double tau = v_[i - 1] + root > 0 ? 2 * d / (v_[i - 1] + root) : 0.0;
+    return options_.start_time_s + times_[i - 1] + std::min(tau, dt);
+  }
   const double f = ds > 0 ? (s_m - s_[i - 1]) / ds : 1.0;
   return options_.start_time_s + times_[i - 1] + f * (times_[i] - times_[i - 1]);
 }

@@ -74,6 +74,10 @@ struct DriveOptions {
   double max_gap_s = 1.0;              // Drive::max_gap_s written to drive.json
 
   // Motion and camera variants (issue 14). The defaults leave the drive as above.
+  // Between the speed profile's 5 cm steps s(t) follows constant acceleration, so frames from
+  // rest and around stops move as the profile says; false: linear in t within a step (the
+  // original profile, whose frame-to-frame acceleration is jerky at low speed).
+  bool constant_acceleration = false;
   bool start_from_rest = false;  // starts standing and accelerates at max_accel_mps2
   double end_stop_s = -1.0;      // >= 0: brakes to a stop at the end and stands this long
   double creep_mps = 0.0;        // > 0: creeps at this speed over the first creep_m of the drive
@@ -139,6 +143,7 @@ class DrivePath {
   std::vector<double> times_;   // time since start, non-decreasing (flat parts: none)
   std::vector<double> s_;       // line parameter s, non-decreasing (flat parts: stops)
   std::vector<double> moving_;  // time spent moving up to times_[i]
+  std::vector<double> v_;       // speed ds/dt at times_[i]
   double phase_[4] = {0, 0, 0, 0};
 };
 
