@@ -87,7 +87,8 @@ struct DriveOptions {
   bool still_when_stopped = false;
   double curve_cut_m = 0.0;    // cuts the inside of every curve by up to this much (DriveLine)
   double curve_ramp_m = 10.0;  // ... reached this far into the curve
-  // Starts on the world's side street and turns right into the street (World::side_street).
+  // Starts on the world's side street, turn_approach_m before the turn, and turns right into the
+  // street's lane (World::side_street; start_offset_m is then unused).
   bool turn_in = false;
   double turn_radius_m = 10.0;           // radius of the turn (of the camera's path)
   double turn_approach_m = 30.0;         // driven on the side street before the turn
