@@ -1,11 +1,15 @@
 #include <algorithm>
 #include <cstdio>
 #include <optional>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include "cli_common.h"
 #include "epiloc/cli/commands.h"
+#include "epiloc/core/error.h"
 #include "epiloc/core/progress.h"
+#include "epiloc/synth/camera_presets.h"
 #include "epiloc/synth/drive_gen.h"
 
 namespace epiloc {
@@ -90,6 +94,187 @@ void ApplyAppearanceFlags(const AppearanceFlags& f, SynthOptions& options) {
   options.world.vegetation.fraction = f.vegetation;
 }
 
+// Query variants (issue 14): another camera, a speed profile, a turn in from a side street,
+// curves on another line, a street with sharper curves.
+struct VariantFlags {
+  std::string camera, size, distortion, stops, sections;
+  double hfov_deg = 0.0, stop_at_end_s = -1.0, turn_in_deg = 0.0;
+  bool sharp_curves = false;
+  bool rate_given = false;    // --query-rate-hz given: it wins over the camera preset's rate
+  bool motion_given = false;  // a speed profile option given: constant acceleration per step
+  double exposure_s = 0.0;    // --query-exposure-s as parsed
+};
+
+void AddVariantOptions(CLI::App& app, VariantFlags& v, SynthOptions& o) {
+  app.add_option("--query-camera", v.camera,
+                 "Query camera preset: default (640x360, 15 Hz), dashcam1080 (1920x1080 wide "
+                 "angle, 30 Hz), vga (640x480, 15 Hz)")
+      ->check(CLI::IsMember(QueryCameraPresets()));
+  app.add_option("--query-size", v.size,
+                 "Query image size WxH (principal point centred, focal length scaled with the "
+                 "width)");
+  app.add_option("--query-hfov-deg", v.hfov_deg,
+                 "Query horizontal field of view, degrees (sets the focal length, distortion "
+                 "included)");
+  app.add_option("--query-distortion", v.distortion,
+                 "Query lens distortion k1,k2,p1,p2,k3 (OpenCV; missing values are 0)");
+  app.add_option("--query-jpeg-quality", o.query.jpeg_quality,
+                 "Store the query frames as JPEG of this quality (1-100; 0 = PNG)")
+      ->check(CLI::Range(0, 100));
+  app.add_option("--query-exposure-s", o.query.exposure_s,
+                 "Query exposure time: motion blur over it (0 = sharp)")
+      ->capture_default_str();
+  app.add_flag("--query-grey", o.query.grey, "Query frames as single-channel grey images");
+  app.add_option("--query-stops", v.stops,
+                 "Query stops AT:SECONDS,... replacing the default stop; AT is a fraction of the "
+                 "drive (0.3) or metres from its start (40m); 'none' for no stop. Frames while "
+                 "standing are identical");
+  app.add_option("--query-speed-sections", v.sections,
+                 "Query speed sections FROM:TO:MPS,... (fractions of the drive) replacing the "
+                 "default 10 m/s section; 'none' for none");
+  app.add_flag("--query-start-from-rest", o.query.start_from_rest,
+               "Query starts standing and accelerates at --query-max-accel-mps2");
+  app.add_option("--query-stop-at-end", v.stop_at_end_s,
+                 "Query brakes to a stop at its end and stands this many seconds");
+  app.add_option("--query-creep-mps", o.query.creep_mps,
+                 "Query creeps at this speed over its first --query-creep-m (0 = no creeping)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--query-creep-m", o.query.creep_m, "Length of the creeping stretch, metres")
+      ->capture_default_str();
+  app.add_option("--query-max-accel-mps2", o.query.max_accel_mps2,
+                 "Query acceleration and braking limit, m/s^2")
+      ->capture_default_str();
+  app.add_option("--query-start-offset-m", o.query.start_offset_m,
+                 "Query starts this far after the survey's start (negative: before it, down to "
+                 "the world's 30 m margin)")
+      ->capture_default_str();
+  app.add_option("--query-end-offset-m", o.query.end_offset_m,
+                 "Query ends this far before the survey's end (negative: after it, up to 60 m)")
+      ->capture_default_str();
+  app.add_option("--query-turn-in-deg", v.turn_in_deg,
+                 "Query starts on a side street (added to the world) and turns right into the "
+                 "street by this angle (60-120 deg)");
+  app.add_option("--query-turn-radius-m", o.query.turn_radius_m,
+                 "Radius of the query's turn in, metres (5-15)")
+      ->capture_default_str();
+  app.add_option("--side-street-at-m", o.world.side_street.at_m,
+                 "Wanted junction of the side street along the street (the nearest place on a "
+                 "long enough straight is taken)")
+      ->capture_default_str();
+  app.add_option("--query-line-m", o.query.curve_cut_m,
+                 "Query cuts the inside of every curve by up to this much, metres (0-2)")
+      ->capture_default_str();
+  app.add_flag("--sharp-curves", v.sharp_curves,
+               "World with more and sharper curves: radius 25-60 m, turns up to 90 deg, "
+               "straights 20-50 m");
+}
+
+// "A:B,..." -> rows of numbers; "none" -> no rows.
+std::vector<std::vector<std::string>> SplitList(const std::string& text, const char* option) {
+  std::vector<std::vector<std::string>> rows;
+  if (text == "none") return rows;
+  std::stringstream items(text);
+  for (std::string item; std::getline(items, item, ',');) {
+    std::vector<std::string> fields;
+    std::stringstream parts(item);
+    for (std::string field; std::getline(parts, field, ':');) fields.push_back(field);
+    EPILOC_CHECK(!fields.empty(), "{}: empty item in '{}'", option, text);
+    rows.push_back(fields);
+  }
+  return rows;
+}
+
+double ToNumber(const std::string& text, const char* option) {
+  size_t used = 0;
+  double value = 0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  EPILOC_CHECK(used == text.size() && !text.empty(), "{}: '{}' is not a number", option, text);
+  return value;
+}
+
+void ApplyVariants(const VariantFlags& v, bool no_distortion, SynthOptions& o) {
+  if (!v.camera.empty()) {
+    const double rate = o.query.frame_rate_hz;
+    ApplyQueryCameraPreset(v.camera, &o.query);
+    if (v.rate_given) o.query.frame_rate_hz = rate;
+  }
+  bool camera_changed = !v.camera.empty();
+  if (!v.size.empty()) {
+    int width = 0, height = 0;
+    char x = 0, rest = 0;
+    EPILOC_CHECK(std::sscanf(v.size.c_str(), "%d%c%d%c", &width, &x, &height, &rest) == 3 &&
+                     x == 'x' && width > 0 && height > 0,
+                 "--query-size: '{}' is not WIDTHxHEIGHT", v.size);
+    o.query.camera = WithSize(o.query.camera, width, height);
+    camera_changed = true;
+  }
+  if (!v.distortion.empty()) {
+    const auto rows = SplitList(v.distortion, "--query-distortion");
+    EPILOC_CHECK(rows.size() >= 1 && rows.size() <= 5, "--query-distortion: 1 to 5 values");
+    o.query.camera.distortion.fill(0.0);
+    for (size_t i = 0; i < rows.size(); ++i) {
+      EPILOC_CHECK(rows[i].size() == 1, "--query-distortion: '{}' is not k1,k2,p1,p2,k3",
+                   v.distortion);
+      o.query.camera.distortion[i] = ToNumber(rows[i][0], "--query-distortion");
+    }
+    camera_changed = true;
+  }
+  if (no_distortion) o.query.camera.distortion.fill(0.0);
+  if (v.hfov_deg > 0) {
+    o.query.camera = WithHorizontalFovDeg(o.query.camera, v.hfov_deg);
+    camera_changed = true;
+  }
+  if (camera_changed) CheckDistortionInvertible(o.query.camera, "query camera");
+  if (!v.stops.empty()) {
+    o.query.stops.clear();
+    for (const auto& fields : SplitList(v.stops, "--query-stops")) {
+      EPILOC_CHECK(fields.size() == 2, "--query-stops: '{}' is not AT:SECONDS,...", v.stops);
+      StopEvent stop;
+      std::string at = fields[0];
+      if (!at.empty() && at.back() == 'm') {
+        at.pop_back();
+        stop.at_m = ToNumber(at, "--query-stops");
+      } else {
+        stop.at_fraction = ToNumber(at, "--query-stops");
+      }
+      stop.duration_s = ToNumber(fields[1], "--query-stops");
+      o.query.stops.push_back(stop);
+    }
+    o.query.still_when_stopped = true;
+  }
+  if (!v.sections.empty()) {
+    o.query.sections.clear();
+    for (const auto& fields : SplitList(v.sections, "--query-speed-sections")) {
+      EPILOC_CHECK(fields.size() == 3, "--query-speed-sections: '{}' is not FROM:TO:MPS,...",
+                   v.sections);
+      o.query.sections.push_back({ToNumber(fields[0], "--query-speed-sections"),
+                                  ToNumber(fields[1], "--query-speed-sections"),
+                                  ToNumber(fields[2], "--query-speed-sections")});
+    }
+  }
+  if (v.stop_at_end_s >= 0) {
+    o.query.end_stop_s = v.stop_at_end_s;
+    o.query.still_when_stopped = true;
+  }
+  if (v.motion_given) o.query.constant_acceleration = true;
+  if (v.turn_in_deg > 0) {
+    o.world.side_street.enabled = true;
+    o.world.side_street.angle_deg = v.turn_in_deg;
+    o.query.turn_in = true;
+  }
+  if (v.sharp_curves) {
+    o.world.min_radius_m = 25.0;
+    o.world.max_radius_m = 60.0;
+    o.world.max_turn_deg = 90.0;
+    o.world.min_straight_m = 20.0;
+    o.world.max_straight_m = 50.0;
+  }
+}
+
 }  // namespace
 
 int RunSynth(int argc, char** argv) {
@@ -134,7 +319,16 @@ int RunSynth(int argc, char** argv) {
   app.add_option("--threads", options.num_threads, "Rendering threads")->capture_default_str();
   AppearanceFlags appearance;
   AddAppearanceFlags(app, appearance);
+  VariantFlags variants;
+  AddVariantOptions(app, variants, options);
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  variants.rate_given = app.count("--query-rate-hz") > 0;
+  for (const char* motion :
+       {"--query-stops", "--query-speed-sections", "--query-start-from-rest", "--query-stop-at-end",
+        "--query-creep-mps", "--query-max-accel-mps2", "--query-turn-in-deg"}) {
+    variants.motion_given = variants.motion_given || app.count(motion) > 0;
+  }
+  variants.exposure_s = options.query.exposure_s;  // --clean-query must not undo it
 
   options.lidar = !no_lidar;
   if (query_length_m > 0) {
@@ -149,6 +343,8 @@ int RunSynth(int argc, char** argv) {
     options.query.wobble_yaw_deg = 0.0;
     options.query.wobble_pitch_deg = 0.0;
   }
+  if (app.count("--query-exposure-s") > 0) options.query.exposure_s = variants.exposure_s;
+  ApplyVariants(variants, no_distortion, options);
   ApplyAppearanceFlags(appearance, options);
   Progress progress("synth", 0);
   const SynthSummary summary = GenerateSynthetic(options, out_dir, progress.Callback());

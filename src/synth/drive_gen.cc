@@ -11,6 +11,7 @@
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
@@ -45,7 +46,13 @@ void ParallelFor(int n, int num_threads, const std::function<void(int)>& fn) {
   if (error) std::rethrow_exception(error);
 }
 
-std::string FrameImage(int frame) { return fmt::format("images/{:06d}.png", frame); }
+std::string FrameImage(int frame, const DriveOptions& drive) {
+  return fmt::format("images/{:06d}.{}", frame, drive.jpeg_quality > 0 ? "jpg" : "png");
+}
+
+bool SamePose(const Rigid3d& a, const Rigid3d& b) {
+  return a.rotation.coeffs() == b.rotation.coeffs() && a.translation == b.translation;
+}
 
 // One drive being generated.
 struct DriveJob {
@@ -69,6 +76,18 @@ void SynthOptions::Check() const {
   query.Check("synth options: query");
   EPILOC_CHECK(query.start_offset_m + query.end_offset_m < length_m - 1,
                "synth options: the query's offsets leave nothing to drive");
+  for (const DriveOptions* drive : {&survey, &query}) {
+    // A drive stays on the built street and keeps 40 m of it ahead of its last frame.
+    EPILOC_CHECK(drive->start_offset_m >= -world.margin_before_m,
+                 "synth options: {}: start_offset_m = {} reaches before the built street ({} m)",
+                 drive->name, drive->start_offset_m, -world.margin_before_m);
+    EPILOC_CHECK(drive->end_offset_m >= 40.0 - world.margin_after_m,
+                 "synth options: {}: end_offset_m = {} must be >= {} m (40 m of built street "
+                 "ahead of the last frame)",
+                 drive->name, drive->end_offset_m, 40.0 - world.margin_after_m);
+    EPILOC_CHECK(!drive->turn_in || world.side_street.enabled,
+                 "synth options: {}: turn_in needs world.side_street.enabled", drive->name);
+  }
   lidar_options.Check();
   EPILOC_CHECK(num_threads >= 1, "synth options: num_threads must be >= 1");
   EPILOC_CHECK(png_compression >= 0 && png_compression <= 9,
@@ -146,21 +165,57 @@ SynthSummary GenerateSynthetic(const SynthOptions& options,
                             drive.render.noise_sigma > 0 ? cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY
                                                          : cv::IMWRITE_PNG_STRATEGY_RLE};
   };
-  ParallelFor(static_cast<int>(tasks.size()), options.num_threads, [&](int i) {
-    const DriveJob& job = drives[tasks[i].first];
-    const int frame = tasks[i].second;
+  const auto image_params = [&](const DriveOptions& drive) {
+    if (drive.jpeg_quality > 0)
+      return std::vector<int>{cv::IMWRITE_JPEG_QUALITY, drive.jpeg_quality};
+    return png_params(drive);
+  };
+  // A still vehicle's frames repeat the first frame of its stand (same pose, same image).
+  std::vector<std::vector<int>> source(2);
+  for (int d = 0; d < 2; ++d) {
+    const DriveJob& job = drives[d];
+    const double exposure = job.options->exposure_s;
+    for (int f = 0; f < static_cast<int>(job.times.size()); ++f) {
+      const double t = job.times[f];
+      const bool repeat =
+          job.options->still_when_stopped && f > 0 &&
+          SamePose(job.path.CamFromWorld(t), job.path.CamFromWorld(job.times[f - 1])) &&
+          SamePose(job.path.CamFromWorld(t + 0.5 * exposure),
+                   job.path.CamFromWorld(job.times[f - 1] + 0.5 * exposure));
+      source[d].push_back(repeat ? source[d][f - 1] : f);
+    }
+  }
+  std::vector<std::pair<int, int>> unique_tasks;
+  for (const auto& [d, f] : tasks) {
+    if (source[d][f] == f) unique_tasks.emplace_back(d, f);
+  }
+  ParallelFor(static_cast<int>(unique_tasks.size()), options.num_threads, [&](int i) {
+    const DriveJob& job = drives[unique_tasks[i].first];
+    const int frame = unique_tasks[i].second;
     const double t = job.times[frame];
     std::optional<Rigid3d> exposure_end;
     if (job.options->exposure_s > 0)
       exposure_end = job.path.CamFromWorld(t + 0.5 * job.options->exposure_s);
     const RenderResult result = job.scene.Render(job.renderer, t, job.path.CamFromWorld(t),
                                                  exposure_end, MixSeed(job.seed, 1000000 + frame));
-    const std::string file = (job.dir / FrameImage(frame)).string();
-    if (!cv::imwrite(file, result.image, png_params(*job.options))) {
+    cv::Mat image = result.image;
+    if (job.options->grey) cv::cvtColor(result.image, image, cv::COLOR_BGR2GRAY);
+    const std::string file = (job.dir / FrameImage(frame, *job.options)).string();
+    if (!cv::imwrite(file, image, image_params(*job.options))) {
       Throw("{}: cannot write image", file);
     }
     report(1);
   });
+  for (const auto& [d, f] : tasks) {
+    if (source[d][f] == f) continue;
+    const DriveOptions& drive = *drives[d].options;
+    fs::copy_file(drives[d].dir / FrameImage(source[d][f], drive),
+                  drives[d].dir / FrameImage(f, drive), fs::copy_options::overwrite_existing, ec);
+    if (ec)
+      Throw("{}: cannot write image: {}", (drives[d].dir / FrameImage(f, drive)).string(),
+            ec.message());
+    report(1);
+  }
 
   // LiDAR map and scan list.
   std::vector<LidarPoint> points;
@@ -221,10 +276,10 @@ SynthSummary GenerateSynthetic(const SynthOptions& options,
     drive.dir = job.dir.string();
     drive.name = fmt::format("{}_seed{}", job.options->name, options.seed);
     drive.camera = job.options->camera;
-    drive.colour = true;
+    drive.colour = !job.options->grey;
     drive.max_gap_s = job.options->max_gap_s;
     for (int f = 0; f < static_cast<int>(job.times.size()); ++f) {
-      drive.frames.push_back({f, job.times[f], FrameImage(f)});
+      drive.frames.push_back({f, job.times[f], FrameImage(f, *job.options)});
     }
     drive.gnss = SimulateGnss(job.path, world_frame, job.options->gnss, MixSeed(job.seed, 7));
     drive.ground_truth = GroundTruthTrack(job.path, world_frame, job.times);

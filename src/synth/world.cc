@@ -497,7 +497,10 @@ void WorldOptions::Check() const {
                "world options: margins must not be negative");
   positive(min_straight_m, "min_straight_m");
   EPILOC_CHECK(max_straight_m >= min_straight_m, "world options: max_straight_m < min_straight_m");
-  EPILOC_CHECK(min_radius_m >= 30, "world options: min_radius_m = {} must be >= 30", min_radius_m);
+  // The pavement on the inside of the tightest curve keeps 5 m from the curve's centre.
+  const double min_radius = road.asphalt_half_width_m() + road.sidewalk_width_m + 5.0;
+  EPILOC_CHECK(min_radius_m >= min_radius, "world options: min_radius_m = {} must be >= {} m",
+               min_radius_m, min_radius);
   EPILOC_CHECK(max_radius_m >= min_radius_m, "world options: max_radius_m < min_radius_m");
   EPILOC_CHECK(max_turn_deg >= 0 && max_turn_deg <= 90,
                "world options: max_turn_deg = {} must be in [0, 90]", max_turn_deg);
@@ -528,11 +531,14 @@ void WorldOptions::Check() const {
   positive(ground_pixels_per_m, "ground_pixels_per_m");
   EPILOC_CHECK(num_threads >= 1, "world options: num_threads must be >= 1");
   vegetation.Check();
+  if (side_street.enabled) side_street.Check();
 }
 
 World BuildWorld(const WorldOptions& options) {
   options.Check();
-  return WorldBuilder(options).Build();
+  World world = WorldBuilder(options).Build();
+  if (options.side_street.enabled) AddSideStreet(&world);
+  return world;
 }
 
 }  // namespace epiloc

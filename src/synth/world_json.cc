@@ -100,6 +100,14 @@ void WriteWorldJson(const World& world, const std::string& path) {
     surfaces.push_back(surface);
   }
   j["surfaces"] = surfaces;
+  if (world.side_street) {
+    const SideStreet& side = *world.side_street;
+    j["side_street"] = {{"junction_s_m", side.junction_s_m},
+                        {"angle_deg", side.angle_deg},
+                        {"junction", {side.junction_in_world.x(), side.junction_in_world.y()}},
+                        {"away", {side.away.x(), side.away.y()}},
+                        {"length_m", side.length_m}};
+  }
   std::ofstream out(path);
   if (!out) Throw("{}: cannot open for writing", path);
   out << j.dump(1) << '\n';

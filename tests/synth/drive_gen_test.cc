@@ -2,12 +2,15 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "epiloc/core/error.h"
 #include "epiloc/core/hash.h"
 #include "epiloc/io/drive.h"
+#include "epiloc/io/frame_reader.h"
 
 namespace epiloc {
 namespace {
@@ -184,6 +187,55 @@ TEST(GenerateSynthetic, WritesLoadableDrivesAndIsDeterministic) {
         1e-3);
   }
   for (const std::string& dir : {a, b, c}) fs::remove_all(dir);
+}
+
+// Issue 14's query variants on disk: grey JPEG frames, and a still stand repeating its frame.
+TEST(GenerateSynthetic, GreyJpegFramesAndStillStops) {
+  SynthOptions options = TinyOptions(5);
+  options.lidar = false;
+  options.query.grey = true;
+  options.query.jpeg_quality = 80;
+  options.query.frame_rate_hz = 2.0;
+  options.query.stops = {{0.0, 3.0, 8.0}};  // 3 s, 8 m after the start
+  options.query.still_when_stopped = true;
+  const std::string dir = TempDir("grey_jpeg");
+  GenerateSynthetic(options, dir);
+  const Drive survey = LoadDrive((fs::path(dir) / "survey").string());
+  const Drive query = LoadDrive((fs::path(dir) / "query").string());
+  EXPECT_TRUE(survey.colour);
+  EXPECT_FALSE(query.colour);
+  const FrameReader reader(query);
+  std::vector<std::string> hashes;
+  for (size_t i = 0; i < query.frames.size(); ++i) {
+    const std::string path = (fs::path(query.dir) / query.frames[i].image).string();
+    ASSERT_EQ(fs::path(path).extension(), ".jpg");
+    std::ifstream file(path, std::ios::binary);
+    unsigned char magic[3] = {0, 0, 0};
+    file.read(reinterpret_cast<char*>(magic), 3);
+    EXPECT_TRUE(magic[0] == 0xFF && magic[1] == 0xD8 && magic[2] == 0xFF) << path;
+    const cv::Mat stored = cv::imread(path, cv::IMREAD_UNCHANGED);
+    EXPECT_EQ(stored.channels(), 1) << path;
+    EXPECT_EQ(stored.cols, query.camera.width);
+    EXPECT_EQ(reader.ReadGrey(i).size(), stored.size());
+    hashes.push_back(HashFile(path));
+  }
+  EXPECT_EQ(
+      cv::imread((fs::path(survey.dir) / survey.frames[0].image).string(), cv::IMREAD_UNCHANGED)
+          .channels(),
+      3);
+  // Over the stand the ground truth and the files repeat; elsewhere they change.
+  int repeated = 0, changed = 0;
+  const std::vector<PositionSample>& truth = query.ground_truth->samples;
+  for (size_t i = 1; i < truth.size(); ++i) {
+    const bool same = truth[i].position.lat_deg == truth[i - 1].position.lat_deg &&
+                      truth[i].position.lon_deg == truth[i - 1].position.lon_deg &&
+                      truth[i].enu_from_cam->coeffs() == truth[i - 1].enu_from_cam->coeffs();
+    EXPECT_EQ(same, hashes[i] == hashes[i - 1]) << "frame " << i;
+    (same ? repeated : changed) += 1;
+  }
+  EXPECT_GE(repeated, 5);  // 3 s at 2 Hz
+  EXPECT_GE(changed, 5);
+  fs::remove_all(dir);
 }
 
 TEST(GenerateSynthetic, OptionsAreChecked) {

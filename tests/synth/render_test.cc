@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "epiloc/core/error.h"
+#include "epiloc/synth/camera_presets.h"
 #include "epiloc/synth/trajectory.h"
 
 namespace epiloc {
@@ -47,18 +48,21 @@ struct CornerStats {
   int count = 0;
   double mean_px = 0.0;
   double max_px = 0.0;
+  double max_x_fraction = 0.0;  // largest |x - cx| of a corner over the half width
 };
 
 // A camera 1.6 m above the road, 4-12 m before a marker, looking at it with the marker pushed
-// towards a random part of the image by a random yaw and pitch.
-Rigid3d PoseFacing(const World& world, const Marker& m, Rng& rng) {
+// towards a random part of the image by a random yaw and pitch (up to 0.45 and 0.2 rad times
+// `spread`).
+Rigid3d PoseFacing(const World& world, const Marker& m, Rng& rng, double spread = 1.0) {
   const RoadCoordinates rc = world.centreline.ToRoad(m.position_in_world.head<2>());
   const double d = rng.Uniform(-3.0, 3.0);
   const Eigen::Vector3d centre =
       world.RoadPoint(rc.s_m - rng.Uniform(4.0, 12.0), d) + Eigen::Vector3d(0, 0, 1.6);
   const Eigen::Vector3d to_marker = (m.position_in_world - centre).normalized();
-  const double yaw = std::atan2(to_marker.y(), to_marker.x()) + rng.Uniform(-0.45, 0.45);
-  const double pitch = std::asin(to_marker.z()) + rng.Uniform(-0.2, 0.2);
+  const double yaw =
+      std::atan2(to_marker.y(), to_marker.x()) + rng.Uniform(-0.45 * spread, 0.45 * spread);
+  const double pitch = std::asin(to_marker.z()) + rng.Uniform(-0.2 * spread, 0.2 * spread);
   const Eigen::Vector3d forward(std::cos(pitch) * std::cos(yaw), std::cos(pitch) * std::sin(yaw),
                                 std::sin(pitch));
   const Eigen::Vector3d right(std::sin(yaw), -std::cos(yaw), 0.0);
@@ -68,8 +72,12 @@ Rigid3d PoseFacing(const World& world, const Marker& m, Rng& rng) {
 }
 
 // Detects the world's checkerboard markers with cv::cornerSubPix, starting 0.6 px off the
-// projection, and compares with camera.Project(cam_from_world * X).
-CornerStats MarkerErrors(const Camera& camera, const RenderOptions& options) {
+// projection, and compares with camera.Project(cam_from_world * X). Stops after `max_corners`;
+// `spread` widens the poses' look-away angles (wide-angle cameras: corners out to the edges).
+CornerStats MarkerErrors(const Camera& camera,
+                         const RenderOptions& options,
+                         int max_corners = 1 << 30,
+                         double spread = 1.0) {
   const World& world = TestWorld();
   RenderOptions with_ids = options;
   with_ids.surface_ids = true;
@@ -78,7 +86,8 @@ CornerStats MarkerErrors(const Camera& camera, const RenderOptions& options) {
   double sum = 0;
   Rng rng(21);
   for (const Marker& m : world.markers) {
-    const Rigid3d pose = PoseFacing(world, m, rng);
+    if (stats.count >= max_corners) break;
+    const Rigid3d pose = PoseFacing(world, m, rng, spread);
     {
       const Eigen::Vector3d x = pose * m.position_in_world;
       if (x.z() < 1.0) continue;
@@ -117,6 +126,8 @@ CornerStats MarkerErrors(const Camera& camera, const RenderOptions& options) {
       const double error = std::hypot(corner[0].x - p.x(), corner[0].y - p.y());
       sum += error;
       stats.max_px = std::max(stats.max_px, error);
+      stats.max_x_fraction =
+          std::max(stats.max_x_fraction, std::abs(p.x() - camera.cx) / (0.5 * camera.width));
       ++stats.count;
     }
   }
@@ -142,6 +153,31 @@ TEST(Render, MarkersAppearWhereTheDistortedCameraProjectsThem) {
     EXPECT_GE(distorted.count, 15);
     EXPECT_LT(distorted.mean_px, 0.3);
     EXPECT_LT(distorted.max_px, 0.5);
+  }
+}
+
+// The query variants' cameras (issue 14): the 1080p wide-angle dashcam (corners pushed out towards
+// its distorted edges) and a strongly distorted VGA camera.
+TEST(Render, MarkersAppearWhereTheDashcamAndAStronglyDistortedCameraProjectThem) {
+  DriveOptions drive = DriveOptions::Query();
+  ApplyQueryCameraPreset("dashcam1080", &drive);
+  const Camera dashcam = drive.camera;
+  ApplyQueryCameraPreset("vga", &drive);
+  Camera strong = drive.camera;
+  strong.distortion = {-0.35, 0.12, 0.001, -0.0008, 0.0};
+  strong = WithHorizontalFovDeg(strong, 90.0);
+  CheckDistortionInvertible(strong, "strong");
+  for (const Camera& camera : {dashcam, strong}) {
+    const CornerStats stats = MarkerErrors(camera, RenderOptions(), 12, 2.0);
+    std::printf(
+        "%dx%d, %.0f deg, k1 %.2f: %d corners out to %.0f %% of the half width, mean %.3f px, "
+        "max %.3f px\n",
+        camera.width, camera.height, HorizontalFovDeg(camera), camera.distortion[0], stats.count,
+        100 * stats.max_x_fraction, stats.mean_px, stats.max_px);
+    EXPECT_GE(stats.count, 12);
+    EXPECT_GT(stats.max_x_fraction, 0.6);  // into the strongly distorted part
+    EXPECT_LT(stats.mean_px, 0.3);
+    EXPECT_LT(stats.max_px, 0.5);
   }
 }
 

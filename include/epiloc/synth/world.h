@@ -15,8 +15,11 @@
 
 #include <Eigen/Core>
 
+#include <optional>
 #include "epiloc/geo/geodetic.h"
+
 #include "epiloc/synth/centreline.h"
+#include "epiloc/synth/side_street.h"
 #include "epiloc/synth/texture.h"
 
 namespace epiloc {
@@ -89,10 +92,10 @@ struct WorldOptions {
   double margin_after_m = 100.0;      // ... and after s = length (what the last frames see)
   double min_straight_m = 30.0;       // straight pieces between curves, random length in [min, max]
   double max_straight_m = 80.0;
-  double min_radius_m = 60.0;  // curve radius, random in [min, max]
-  double max_radius_m = 180.0;
-  double max_turn_deg = 55.0;         // turn of one curve, random in [15, max]
-  RoadProfile road;                   // lanes, parking strips, pavements, kerb
+  double min_radius_m = 60.0;   // curve radius, random in [min, max] (min: the pavement's outer
+  double max_radius_m = 180.0;  // edge stays 5 m from the centre of the tightest curve)
+  double max_turn_deg = 55.0;   // turn of one curve, random in [15, max]
+  RoadProfile road;             // lanes, parking strips, pavements, kerb
   double min_building_width_m = 8.0;  // building fronts along the road
   double max_building_width_m = 22.0;
   double min_building_height_m = 7.0;
@@ -113,6 +116,8 @@ struct WorldOptions {
 
   // Appearance variants (off by default: the world is then exactly the one without them).
   VegetationOptions vegetation;
+  // Side street joining from the right (issue 14's turn-in drives); built when enabled.
+  SideStreetOptions side_street;
 
   // Throws Error naming the first invalid field.
   void Check() const;
@@ -137,7 +142,8 @@ struct World {
   std::vector<Surface> surfaces;
   std::vector<Texture> textures;  // with mip levels
   std::vector<Marker> markers;
-  std::vector<double> crossings_s_m;  // zebra crossings (start of the stripes)
+  std::vector<double> crossings_s_m;      // zebra crossings (start of the stripes)
+  std::optional<SideStreet> side_street;  // when options.side_street.enabled
   // Appearance variants.
   std::vector<ParkingSlot> parking_slots;     // free slots in order of s, per side
   std::vector<VegetationStretch> vegetation;  // in order of side, then s
