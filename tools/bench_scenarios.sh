@@ -83,23 +83,25 @@ localize_run() {
 
 # synthetic NAME "WORLD_OPTIONS" "QUERY_OPTIONS": `epiloc synth` with both option sets; WORLD_OPTIONS
 # are those that change the world or the survey drive (the route database is shared by every
-# scenario with the same world options and seed), QUERY_OPTIONS change only the query drive.
-synthetic_length_m=${EPILOC_SCENARIO_LENGTH_M:-100}
+# scenario with the same world options and seed: later ones generate their query only),
+# QUERY_OPTIONS change only the query drive.
+synthetic_length_m=${EPILOC_SCENARIO_LENGTH_M:-80}
 synthetic() {
   local name=$1 world_options=$2 query_options=$3
   [[ $name =~ $filter ]] || return 0
-  local world_key
+  local world_key query_key
   world_key=$(echo "len$synthetic_length_m $world_options" | md5sum | cut -c1-10)
-  local query_key
   query_key=$(echo "len$synthetic_length_m $world_options | $query_options" | md5sum | cut -c1-10)
+  mkdir -p "$cache/synth" "$cache/db"
   for run in $(seq 1 "$runs"); do
     local world="$cache/synth/${name}_${query_key}_seed$run"
     local db="$cache/db/synth_${world_key}_seed$run.sqlite"
-    mkdir -p "$cache/synth" "$cache/db"
-    say "$name run $run: synth"
+    local only=""
+    [[ -e $db ]] && only="--query-only"
+    say "$name run $run: synth $only"
     # shellcheck disable=SC2086
     cached "$world" "$epiloc" synth --out "$world.tmp" --seed "$run" \
-      --length-m "$synthetic_length_m" --no-lidar -q $world_options $query_options
+      --length-m "$synthetic_length_m" --no-lidar -q $only $world_options $query_options
     if [[ ! -e $db ]]; then
       say "$name run $run: build-db"
       rm -f "$db.tmp"
@@ -143,8 +145,33 @@ kitti() {
 }
 
 # ---- The scenarios ---------------------------------------------------------------------------
+# The synthetic street (80 m; the default query: 640x360 dashcam with barrel distortion, 0.7 m to
+# the left, noise, blur, darker exposure, heading wobble, a 2 s stop, 6-10 m/s, 15 Hz, 3 m GPS).
 synthetic synth_default "" ""
+# Another day: parked cars, light (the survey's day overcast, the query's sunny with shadows,
+# brighter and warmer), traffic, a lead vehicle in both drives, vegetation.
+synthetic synth_parked_cars "" "--query-parked-cars-changed 0.5"
+synthetic synth_light "" "--query-sun 250,25 --query-exposure 1.3 --query-white-balance 1.15,1,0.8"
+synthetic synth_traffic "--traffic 6" "--query-parked-cars-changed 0.3"
+synthetic synth_lead_vehicle "--lead-vehicle-gap-m 10" ""
+synthetic synth_vegetation "--vegetation 0.6" ""
+# Another camera.
+synthetic synth_dashcam_1080p "" "--query-camera dashcam1080 --query-jpeg-quality 90 --query-length-m 35"
+synthetic synth_vga_grey_jpeg "" "--query-camera vga --query-grey --query-jpeg-quality 60 --query-exposure-s 0.02"
+synthetic synth_same_line "" "--query-offset-m 0"
+# Another speed profile.
+synthetic synth_stops_creep "" "--query-start-from-rest --query-creep-mps 1 --query-creep-m 8 --query-max-accel-mps2 4 --query-stops 0.5:6 --query-stop-at-end 3"
+synthetic synth_fast "" "--query-speed-mps 16 --query-speed-sections none --query-stops none"
+synthetic synth_beyond_ends "" "--query-start-offset-m -15 --query-end-offset-m -15"
+# Curves and turns.
+synthetic synth_turn_in "--query-turn-in-deg 90" ""
+synthetic synth_sharp_curves "--sharp-curves" "--query-line-m 1"
+# Combined: the failures seen on unseen real drives.
+synthetic combo_lead_vegetation_fast "--lead-vehicle-gap-m 12 --vegetation 0.6 --traffic 4" "--query-speed-mps 15 --query-speed-sections none --query-stops none"
+synthetic combo_turn_from_rest_same_line "--query-turn-in-deg 90" "--query-start-from-rest --query-creep-mps 0.8 --query-creep-m 6 --query-offset-m 0 --query-grey"
+synthetic combo_another_day "" "--query-sun 120,30 --query-exposure 0.7 --query-parked-cars-changed 0.3 --query-camera vga --query-jpeg-quality 75"
 
+# The shared KITTI drive: survey camera 0, query camera 1 (0.54 m to the side).
 kitti kitti_dev 2 1:154:2 3
 kitti kitti_survey_every1 1 1:154:2 3
 kitti kitti_survey_every4 4 1:154:2 3

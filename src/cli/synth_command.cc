@@ -316,6 +316,10 @@ int RunSynth(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   app.add_flag("--no-lidar", no_lidar, "Skip the LiDAR map");
+  bool query_only = false;
+  app.add_flag("--query-only", query_only,
+               "Write the query drive only (not the survey's frames): another query of a world "
+               "generated before with the same seed and world options");
   app.add_option("--threads", options.num_threads, "Rendering threads")->capture_default_str();
   AppearanceFlags appearance;
   AddAppearanceFlags(app, appearance);
@@ -331,6 +335,7 @@ int RunSynth(int argc, char** argv) {
   variants.exposure_s = options.query.exposure_s;  // --clean-query must not undo it
 
   options.lidar = !no_lidar;
+  options.survey_frames = !query_only;
   if (query_length_m > 0) {
     options.query.end_offset_m =
         std::max(options.query.end_offset_m,

@@ -113,7 +113,8 @@ SynthSummary GenerateSynthetic(const SynthOptions& options,
   const EnuFrame world_frame(world.origin());
   const fs::path out(out_dir);
   std::error_code ec;
-  for (const char* sub : {"survey/images", "query/images", "lidar"}) {
+  for (const std::string sub : {"survey/images", "query/images", "lidar"}) {
+    if (sub == "survey/images" && !options.survey_frames) continue;
     fs::create_directories(out / sub, ec);
     if (ec) Throw("{}: cannot create directory: {}", (out / sub).string(), ec.message());
   }
@@ -146,7 +147,8 @@ SynthSummary GenerateSynthetic(const SynthOptions& options,
 
   // Frames of both drives, in parallel.
   std::vector<std::pair<int, int>> tasks;
-  for (int d = 0; d < 2; ++d) {
+  const int first_drive = options.survey_frames ? 0 : 1;
+  for (int d = first_drive; d < 2; ++d) {
     for (int f = 0; f < static_cast<int>(drives[d].times.size()); ++f) tasks.emplace_back(d, f);
   }
   const int64_t total = static_cast<int64_t>(tasks.size() + sensor_poses.size());
@@ -270,7 +272,7 @@ SynthSummary GenerateSynthetic(const SynthOptions& options,
 
   // Drive directories.
   SynthSummary summary;
-  for (int d = 0; d < 2; ++d) {
+  for (int d = first_drive; d < 2; ++d) {
     const DriveJob& job = drives[d];
     Drive drive;
     drive.dir = job.dir.string();

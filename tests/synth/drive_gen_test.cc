@@ -189,6 +189,28 @@ TEST(GenerateSynthetic, WritesLoadableDrivesAndIsDeterministic) {
   for (const std::string& dir : {a, b, c}) fs::remove_all(dir);
 }
 
+TEST(GenerateSynthetic, QueryOnlyWritesTheSameQueryAndNoSurveyFrames) {
+  const std::string full = TempDir("full"), query_only = TempDir("query_only");
+  SynthOptions options = TinyOptions(7);
+  options.lidar = false;
+  const SynthSummary a = GenerateSynthetic(options, full);
+  options.survey_frames = false;
+  const SynthSummary b = GenerateSynthetic(options, query_only);
+  EXPECT_GT(a.num_survey_frames, 3);
+  EXPECT_EQ(b.num_survey_frames, 0);
+  ASSERT_EQ(a.num_query_frames, b.num_query_frames);
+  EXPECT_FALSE(fs::exists(fs::path(query_only) / "survey"));
+  for (const std::string file : {"query/drive.json", "query/frames.csv", "query/gnss.csv",
+                                 "query/ground_truth.csv", "query/images/000000.png",
+                                 "query/images/000003.png", "world.json"}) {
+    ASSERT_TRUE(fs::exists(fs::path(query_only) / file)) << file;
+    EXPECT_EQ(HashFile((fs::path(full) / file).string()),
+              HashFile((fs::path(query_only) / file).string()))
+        << file;
+  }
+  for (const std::string& dir : {full, query_only}) fs::remove_all(dir);
+}
+
 // Issue 14's query variants on disk: grey JPEG frames, and a still stand repeating its frame.
 TEST(GenerateSynthetic, GreyJpegFramesAndStillStops) {
   SynthOptions options = TinyOptions(5);

@@ -34,6 +34,9 @@ struct SynthOptions {
   DriveOptions survey = DriveOptions::Survey();  // survey drive (see DriveOptions::Survey)
   DriveOptions query = DriveOptions::Query();    // query drive (see DriveOptions::Query)
   bool lidar = true;                             // simulate the LiDAR map from the survey path
+  // Render and write the survey drive (off: the query drive only, e.g. another query of a world
+  // whose survey was generated before with the same world options and seed).
+  bool survey_frames = true;
   LidarOptions lidar_options;                    // scanner model and scan spacing
   bool lidar_scan_files = false;  // also write each scan (sensor frame) into survey/lidar/
   int num_threads = 2;            // rendering and scanning threads
