@@ -14,7 +14,8 @@
 #   EPILOC_KITTI_RAW        the KITTI drive (default ../shared/data/kitti_raw/.../drive_0005_sync;
 #                           its scenarios are skipped when it is absent)
 # A benchmark, not a test: it prints figures and exits 0 unless something crashes. Per-run
-# outputs (result CSV, evaluation JSON, logs) stay in the cache under runs/.
+# outputs (result CSV, diagnostics, evaluation JSON, per-frame errors, logs) stay in the cache
+# under runs/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build}
@@ -29,6 +30,9 @@ if [[ ! -x $epiloc ]]; then
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
   cmake --build "$build" -j"$(nproc)" --target epiloc
 fi
+# Per-frame errors (evaluate --errors) where the binary has them (not before issue 16).
+evaluate_errors=no
+"$epiloc" evaluate --help 2>/dev/null | grep -q -- '--errors' && evaluate_errors=yes
 mkdir -p "$cache/runs"
 cache=$(cd "$cache" && pwd)
 log="$cache/suite.log"
@@ -67,13 +71,16 @@ localize_run() {
   mkdir -p "$out"
   # shellcheck disable=SC2086
   if ! /usr/bin/time -f "%M" -o "$out/max_rss_kb" "$epiloc" localize --db "$db" --drive "$query" \
-      --out "$out/result.csv" -q "$@" $extra_args > "$out/localize.log" 2>&1; then
+      --out "$out/result.csv" --diagnostics "$out/diagnostics.csv" -q "$@" $extra_args \
+      > "$out/localize.log" 2>&1; then
     echo "bench_scenarios: localize failed for $name run $run:" >&2
     cat "$out/localize.log" >&2
     exit 1
   fi
+  local errors=()
+  [[ $evaluate_errors == yes ]] && errors=(--errors "$out/errors.csv")
   quiet "$epiloc" evaluate --result "$out/result.csv" --truth "$query" --route "$db" \
-    --json "$out/summary.json" -q
+    --json "$out/summary.json" "${errors[@]}" -q
   local frames fps
   frames=$(grep -oE ': [0-9]+ frames' "$out/localize.log" | head -1 | grep -oE '[0-9]+')
   fps=$(grep -oE '[0-9.]+ frames/s' "$out/localize.log" | head -1 | grep -oE '^[0-9.]+')

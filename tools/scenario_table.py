@@ -38,16 +38,22 @@ def main():
                 dict(run=int(run), frames=int(frames), fps=float(fps), mb=int(rss_kb) / 1024.0,
                      summary=summary))
     header = ("| scenario | frames | localized | lost | online mean | online max | pnp mean | "
-              "pnp max | within 0.5 m | frames/s | peak MB |")
+              "pnp max | within 0.5 m | frames/s | peak MB | within 2 sigma |")
     print(header)
-    print("|" + "---|" * 11)
+    print("|" + "---|" * 12)
     worst = dict(online=(-1.0, ""), pnp=(-1.0, ""), fps=(float("inf"), ""))
     for name, rs in scenarios.items():
         frames = max(r["frames"] for r in rs)
         localized = lost = None
         online_mean = online_max = pnp_mean = pnp_max = None
         within = None
+        calibration = None  # worst share of frames within 2 sigma, online and pnp along-track
         for r in rs:
+            for name_m in ("online", "pnp"):
+                c = method(r["summary"], name_m).get("calibration", {})
+                if c.get("along_frames_with_sigma", 0) > 0:
+                    share = c["along_within_2_sigma"]
+                    calibration = share if calibration is None else min(calibration, share)
             online = along(r["summary"], "online")
             counts = method(r["summary"], "online").get("counts", {})
             ok = counts.get("ok", 0)
@@ -81,7 +87,8 @@ def main():
         runs_note = "" if len(rs) == expected_runs else f" ({len(rs)} runs)"
         print(f"| {name}{runs_note} | {frames} | {localized} | {lost} | {m(online_mean)} | "
               f"{m(online_max)} | {m(pnp_mean)} | {m(pnp_max)} | "
-              f"{'-' if within is None else f'{100 * within:.1f} %'} | {fps:.1f} | {mb:.0f} |")
+              f"{'-' if within is None else f'{100 * within:.1f} %'} | {fps:.1f} | {mb:.0f} | "
+              f"{'-' if calibration is None else f'{100 * calibration:.1f} %'} |")
     print(f"worst: online max {worst['online'][0]:.3f} m ({worst['online'][1]}), "
           f"pnp max {worst['pnp'][0]:.3f} m ({worst['pnp'][1]}), "
           f"slowest {worst['fps'][0]:.1f} frames/s ({worst['fps'][1]})")

@@ -34,7 +34,7 @@ int RunEvaluate(int argc, char** argv) {
   AddCommonFlags(app, flags);
   EvaluateInputs inputs;
   std::string truth_format = "auto", truth_origin, lever_arm, association = "auto";
-  std::string report_path, json_path;
+  std::string report_path, json_path, errors_path;
   bool no_gnss = false, no_png = false;
   ReportOptions report;
   app.add_option("--result", inputs.result_path,
@@ -76,6 +76,8 @@ int RunEvaluate(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--report", report_path, "Write an HTML report (plots in <name>_files/)");
   app.add_option("--json", json_path, "Write all metrics as JSON");
+  app.add_option("--errors", errors_path,
+                 "Write each evaluated frame's errors and sigmas per method as CSV");
   app.add_option("--gnuplot", report.gnuplot, "gnuplot executable")->capture_default_str();
   app.add_flag("--no-png", no_png, "Report: SVG plots only, no PNG copies");
   if (auto code = Parse(app, flags, argc, argv)) return *code;
@@ -101,6 +103,10 @@ int RunEvaluate(int argc, char** argv) {
   if (!json_path.empty()) {
     WriteEvaluationJson(eval, json_path);
     spdlog::info("wrote {}", json_path);
+  }
+  if (!errors_path.empty()) {
+    WriteFrameErrorsCsv(eval, errors_path);
+    spdlog::info("wrote {}", errors_path);
   }
   if (!report_path.empty()) {
     WriteHtmlReport(eval, report_path, report);

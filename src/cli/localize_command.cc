@@ -102,8 +102,24 @@ int RunLocalize(int argc, char** argv) {
   app.add_option("--track-window-m", options.track_window_m,
                  "Half-width of the database window evaluated around the predicted position")
       ->capture_default_str();
+  app.add_option("--max-sigma-m", options.max_sigma_m,
+                 "A frame whose along-track sigma exceeds this is lost, not a guess")
+      ->capture_default_str();
+  app.add_option("--survey-sigma-m", options.survey_sigma_m,
+                 "Error of the survey positions, added to every reported sigma (0: exact)")
+      ->capture_default_str();
+  app.add_option("--off-route-m", options.off_route_m,
+                 "A GPS fix this far beside or beyond the route marks the frame off_route")
+      ->capture_default_str();
+  app.add_option("--route-end-margin-m", options.route_end_margin_m,
+                 "A track this far beyond the first or last database frame is off_route")
+      ->capture_default_str();
   app.add_option("--fit-window-m", options.fit_window_m,
                  "Database frames within this of the DTW match enter the V-fit")
+      ->capture_default_str();
+  app.add_option("--max-focal-ratio", options.max_focal_ratio,
+                 "Query images are reduced to at most this times the database's focal length "
+                 "(0: full resolution)")
       ->capture_default_str();
   app.add_option("--max-query-features", options.max_query_features,
                  "Strongest SIFT features of a query frame")

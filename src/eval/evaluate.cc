@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <optional>
 
@@ -107,6 +108,32 @@ void Summarize(MethodEvaluation& m) {
   m.horizontal = ComputeErrorStatistics(horizontal);
   m.vertical = ComputeErrorStatistics(vertical);
   m.error_3d = ComputeErrorStatistics(full);
+  const auto calibration = [&](auto error, auto sigma) {
+    Calibration c;
+    int64_t within = 0;
+    for (const auto& f : m.frames) {
+      if (!std::isfinite(sigma(f))) continue;
+      ++c.count;
+      within += std::abs(error(f)) <= 2.0 * sigma(f) ? 1 : 0;
+    }
+    if (c.count > 0) c.share_within_2_sigma = static_cast<double>(within) / c.count;
+    return c;
+  };
+  m.along_calibration = calibration([](const FrameError& f) { return f.along_track_m; },
+                                    [](const FrameError& f) { return f.sigma_along_m; });
+  m.horizontal_calibration = calibration([](const FrameError& f) { return f.horizontal_m; },
+                                         [](const FrameError& f) { return f.sigma_horizontal_m; });
+}
+
+// The value of an extra column of a row as a positive number, NaN if absent, empty or invalid.
+double ExtraSigma(const ResultTable& result, const ResultRow& row, const std::string& column) {
+  const auto it = std::find(result.extra_columns.begin(), result.extra_columns.end(), column);
+  if (it == result.extra_columns.end()) return NAN;
+  const std::string& text = row.extra[static_cast<size_t>(it - result.extra_columns.begin())];
+  if (text.empty()) return NAN;
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  return end != text.c_str() && *end == '\0' && value > 0 && std::isfinite(value) ? value : NAN;
 }
 
 }  // namespace
@@ -212,6 +239,8 @@ Evaluation Evaluate(const ResultTable& result,
                                        match->enu_from_cam->toRotationMatrix());
       f.rotation_deg = RotationDifferenceDeg(estimate, truth_q);
     }
+    f.sigma_along_m = ExtraSigma(result, row, "sigma_along_m");
+    f.sigma_horizontal_m = ExtraSigma(result, row, "sigma_horizontal_m");
     m.frames.push_back(f);
   }
 

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
 #include "epiloc/eval/report.h"
 #include "report_internal.h"
@@ -92,6 +93,26 @@ std::vector<TableRow> AlongTrackRows(const Evaluation& eval) {
     for (const auto& m : eval.methods) row.cells.push_back(Percent(m.along_track.share_within[i]));
     rows.push_back(row);
   }
+  const auto any_sigma = [&](auto get) {
+    return std::any_of(eval.methods.begin(), eval.methods.end(),
+                       [&](const MethodEvaluation& m) { return get(m).count > 0; });
+  };
+  const std::vector<
+      std::pair<std::string, std::function<const Calibration&(const MethodEvaluation&)>>>
+      calibrations = {
+          {"<=2sigma [%]",
+           [](const MethodEvaluation& m) -> const Calibration& { return m.along_calibration; }},
+          {"horiz<=2sigma [%]", [](const MethodEvaluation& m) -> const Calibration& {
+             return m.horizontal_calibration;
+           }}};
+  for (const auto& [label, get] : calibrations) {
+    if (!any_sigma(get)) continue;
+    TableRow row{label, {}};
+    for (const auto& m : eval.methods) {
+      row.cells.push_back(get(m).count > 0 ? Percent(get(m).share_within_2_sigma) : "-");
+    }
+    rows.push_back(row);
+  }
   rows.push_back({"Frames", {}});
   using Count = std::function<int64_t(const MethodEvaluation&)>;
   std::vector<std::pair<std::string, Count>> counts = {
@@ -139,8 +160,9 @@ std::vector<TableRow> OtherErrorRows(const Evaluation& eval) {
     }
   }
   // Orientation error, only when some method has orientations to compare.
-  const bool any_rotation = std::any_of(eval.methods.begin(), eval.methods.end(),
-                                        [](const MethodEvaluation& m) { return m.rotation.count > 0; });
+  const bool any_rotation =
+      std::any_of(eval.methods.begin(), eval.methods.end(),
+                  [](const MethodEvaluation& m) { return m.rotation.count > 0; });
   if (any_rotation) {
     rows.push_back({"Rotation [deg]", {}});
     const std::vector<std::pair<std::string, std::function<std::string(const ErrorStatistics&)>>>
@@ -202,15 +224,21 @@ std::string EvaluationJson(const Evaluation& eval) {
                                          : nlohmann::json(m.unmatched_frames[i])},
                            {"timestamp_s", m.unmatched_times_s[i]}});
     }
-    j["methods"].push_back({{"method", m.method},
-                            {"counts", counts},
-                            {"unmatched_frames", unmatched},
-                            {"along_track_m", StatisticsJson(m.along_track)},
-                            {"cross_track_m", StatisticsJson(m.cross_track)},
-                            {"horizontal_m", StatisticsJson(m.horizontal)},
-                            {"vertical_m", StatisticsJson(m.vertical)},
-                            {"error_3d_m", StatisticsJson(m.error_3d)},
-                            {"rotation_deg", StatisticsJson(m.rotation)}});
+    j["methods"].push_back(
+        {{"method", m.method},
+         {"counts", counts},
+         {"unmatched_frames", unmatched},
+         {"along_track_m", StatisticsJson(m.along_track)},
+         {"cross_track_m", StatisticsJson(m.cross_track)},
+         {"horizontal_m", StatisticsJson(m.horizontal)},
+         {"vertical_m", StatisticsJson(m.vertical)},
+         {"error_3d_m", StatisticsJson(m.error_3d)},
+         {"rotation_deg", StatisticsJson(m.rotation)},
+         {"calibration",
+          {{"along_frames_with_sigma", m.along_calibration.count},
+           {"along_within_2_sigma", m.along_calibration.share_within_2_sigma},
+           {"horizontal_frames_with_sigma", m.horizontal_calibration.count},
+           {"horizontal_within_2_sigma", m.horizontal_calibration.share_within_2_sigma}}}});
   }
   j["warnings"] = eval.warnings;
   return j.dump(2) + "\n";
@@ -223,6 +251,24 @@ void WriteEvaluationJson(const Evaluation& eval, const std::string& path) {
   out << EvaluationJson(eval);
   out.close();
   if (!out) Throw("{}: write failed", path);
+}
+
+void WriteFrameErrorsCsv(const Evaluation& eval, const std::string& path) {
+  CreateParentDirectory(path);
+  CsvWriter out(path, {"frame", "timestamp_s", "method", "truth_s_m", "estimate_s_m",
+                       "along_track_m", "cross_track_m", "horizontal_m", "vertical_m", "error_3d_m",
+                       "rotation_deg", "sigma_along_m", "sigma_horizontal_m"});
+  for (const MethodEvaluation& m : eval.methods) {
+    for (const FrameError& f : m.frames) {
+      out.WriteRow({std::to_string(f.frame), FormatFixed(f.timestamp_s, 6), m.method,
+                    FormatFixed(f.truth_s_m, 4), FormatFixed(f.estimate_s_m, 4),
+                    FormatFixed(f.along_track_m, 4), FormatFixed(f.cross_track_m, 4),
+                    FormatFixed(f.horizontal_m, 4), FormatFixed(f.vertical_m, 4),
+                    FormatFixed(f.error_3d_m, 4), FormatFixed(f.rotation_deg, 4),
+                    FormatFixed(f.sigma_along_m, 4), FormatFixed(f.sigma_horizontal_m, 4)});
+    }
+  }
+  out.Close();
 }
 
 }  // namespace epiloc

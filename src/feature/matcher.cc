@@ -4,9 +4,8 @@
 #include <cmath>
 #include <limits>
 
-#include <flann/flann.hpp>
-
 #include "epiloc/core/error.h"
+#include "epiloc/feature/kd_forest.h"
 
 namespace epiloc {
 
@@ -31,7 +30,7 @@ std::vector<float> ToRootSift(const FeatureDescriptors& descriptors, int num_row
 
 struct DescriptorIndex::Impl {
   std::vector<float> data;
-  std::unique_ptr<flann::Index<flann::L2<float>>> index;
+  std::unique_ptr<KdForest> index;
 };
 
 DescriptorIndex::DescriptorIndex(const FeatureDescriptors& descriptors,
@@ -43,10 +42,8 @@ DescriptorIndex::DescriptorIndex(const FeatureDescriptors& descriptors,
   if (max_rows >= 0) num_rows_ = std::min(num_rows_, max_rows);
   if (num_rows_ < 2) return;  // nothing to match against (the ratio test needs two)
   impl_->data = ToRootSift(descriptors, num_rows_);
-  flann::Matrix<float> matrix(impl_->data.data(), num_rows_, 128);
-  impl_->index = std::make_unique<flann::Index<flann::L2<float>>>(
-      matrix, flann::KDTreeIndexParams(options.num_trees));
-  impl_->index->buildIndex();
+  impl_->index = std::make_unique<KdForest>(options.num_trees);
+  impl_->index->Build(impl_->data.data(), static_cast<size_t>(num_rows_));
 }
 
 DescriptorIndex::~DescriptorIndex() = default;
@@ -59,14 +56,10 @@ std::vector<FeatureMatch> DescriptorIndex::Match(const FeatureDescriptors& other
   std::vector<float> query = ToRootSift(other, num_query);
   std::vector<size_t> indices(static_cast<size_t>(num_query) * 2);
   std::vector<float> distances(static_cast<size_t>(num_query) * 2);
-  flann::Matrix<float> query_matrix(query.data(), num_query, 128);
-  flann::Matrix<size_t> index_matrix(indices.data(), num_query, 2);
-  flann::Matrix<float> distance_matrix(distances.data(), num_query, 2);
-  flann::SearchParams params(options_.num_checks);
-  params.cores = 1;  // callers parallelise over frames
-  impl_->index->knnSearch(query_matrix, index_matrix, distance_matrix, 2, params);
+  impl_->index->Search(query.data(), static_cast<size_t>(num_query), 2, options_.num_checks,
+                       indices.data(), distances.data());
 
-  // FLANN's L2 returns squared distances; the ratio test compares distances.
+  // The forest returns squared distances; the ratio test compares distances.
   const float ratio2 = static_cast<float>(options_.ratio * options_.ratio);
   std::vector<FeatureMatch> best_for_indexed(num_rows_);
   for (int i = 0; i < num_query; ++i) {

@@ -1,5 +1,7 @@
 #include "epiloc/geometry/absolute_pose.h"
 
+#include <Eigen/LU>
+
 #include <cmath>
 
 #include <opencv2/calib3d.hpp>
@@ -62,8 +64,8 @@ PnpResult EstimateAbsolutePose(const std::vector<Eigen::Vector2d>& points2d,
                                const Camera& camera,
                                const PnpOptions& options) {
   options.Check();
-  EPILOC_CHECK(points2d.size() == points3d.size(),
-               "EstimateAbsolutePose: {} pixels but {} points", points2d.size(), points3d.size());
+  EPILOC_CHECK(points2d.size() == points3d.size(), "EstimateAbsolutePose: {} pixels but {} points",
+               points2d.size(), points3d.size());
   PnpResult result;
   const int n = static_cast<int>(points2d.size());
   if (n < std::max(options.min_inliers, 6)) {
@@ -121,9 +123,9 @@ PnpResult EstimateAbsolutePose(const std::vector<Eigen::Vector2d>& points2d,
     }
     if (static_cast<int>(in_object.size()) < 6) break;
     ToRvecTvec(centred, &rvec, &tvec);
-    cv::solvePnPRefineLM(in_object, in_image, k, cv::noArray(), rvec, tvec,
-                         cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50,
-                                          1e-10));
+    cv::solvePnPRefineLM(
+        in_object, in_image, k, cv::noArray(), rvec, tvec,
+        cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-10));
     centred = FromRvecTvec(rvec, tvec);
     errors = SquaredErrors(centred2d, centred3d, camera, centred);
   }
@@ -135,13 +137,40 @@ PnpResult EstimateAbsolutePose(const std::vector<Eigen::Vector2d>& points2d,
     ++result.num_inliers;
     sum += errors[i];
   }
-  result.cam_from_world = Rigid3d(centred.rotation,
-                                  centred.translation - (centred.rotation * centroid));
+  result.cam_from_world =
+      Rigid3d(centred.rotation, centred.translation - (centred.rotation * centroid));
   result.rmse_px = result.num_inliers > 0 ? std::sqrt(sum / result.num_inliers) : INFINITY;
   if (result.num_inliers < options.min_inliers) {
     result.message = fmt::format("{} PnP inliers of {} correspondences, fewer than {}",
                                  result.num_inliers, n, options.min_inliers);
     return result;
+  }
+  // Covariance of the camera centre from the inliers' Gauss-Newton normal matrix: x_cam =
+  // R (X - C) with R perturbed on the left by exp([dθ]x), so dx_cam/dθ = -[x_cam]x and
+  // dx_cam/dC = -R; the pixel noise is the inliers' own residual scale (RSS over n - 6).
+  Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
+  const Eigen::Matrix3d r = centred.rotation.toRotationMatrix();
+  for (int i = 0; i < n; ++i) {
+    if (!result.inlier_mask[i]) continue;
+    const Eigen::Vector3d x = r * centred3d[i] + centred.translation;
+    if (!(x.z() > 1e-9)) continue;
+    Eigen::Matrix<double, 2, 3> projection;
+    projection << camera.fx / x.z(), 0.0, -camera.fx * x.x() / (x.z() * x.z()), 0.0,
+        camera.fy / x.z(), -camera.fy * x.y() / (x.z() * x.z());
+    Eigen::Matrix3d skew;
+    skew << 0.0, -x.z(), x.y(), x.z(), 0.0, -x.x(), -x.y(), x.x(), 0.0;
+    Eigen::Matrix<double, 2, 6> j;
+    j.leftCols<3>() = -projection * skew;
+    j.rightCols<3>() = -projection * r;
+    normal += j.transpose() * j;
+  }
+  const double dof = std::max(1, result.num_inliers - 6);
+  const double sigma2 = sum / dof;
+  Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(normal);
+  if (lu.isInvertible()) {
+    result.center_covariance = sigma2 * lu.inverse().bottomRightCorner<3, 3>();
+  } else {
+    result.center_covariance = Eigen::Matrix3d::Identity() * 1e6;
   }
   result.success = true;
   return result;

@@ -68,6 +68,7 @@ std::optional<QueryFrame> FollowDriveSource::Next() {
   while (next_pending_ >= pending_.size()) {
     pending_ = follower_.PollFrames();
     next_pending_ = 0;
+    polled_at_s_ = NowSeconds();
     if (!pending_.empty()) break;
     if (std::chrono::duration<double>(Clock::now() - idle_since).count() > idle_timeout_s_) {
       return std::nullopt;
@@ -79,7 +80,8 @@ std::optional<QueryFrame> FollowDriveSource::Next() {
   QueryFrame frame;
   frame.frame = record.frame;
   frame.timestamp_s = record.timestamp_s;
-  frame.arrival_s = NowSeconds();
+  // Rows read in one poll arrived together, however long the earlier ones of them take.
+  frame.arrival_s = polled_at_s_;
   frame.image = ReadImageFile(manifest.ImagePath(record), manifest.camera, false);
   if (use_gnss_) {
     if (const std::optional<PositionSample> fix = follower_.GnssAt(record.timestamp_s)) {

@@ -6,6 +6,7 @@
 #include <limits>
 #include <thread>
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "epiloc/core/error.h"
@@ -143,8 +144,15 @@ void LocalizeOptions::Check() const {
   sift.Check();
   pairs.Check();
   dtw.Check();
+  evidence.Check();
+  filter.Check();
   vfit.Check();
   refine.Check();
+  EPILOC_CHECK(max_sigma_m > 0, "localize: max_sigma_m must be > 0");
+  EPILOC_CHECK(route_end_margin_m >= 0, "localize: route_end_margin_m must be >= 0");
+  EPILOC_CHECK(max_focal_ratio >= 0, "localize: max_focal_ratio must be >= 0");
+  EPILOC_CHECK(survey_sigma_m >= 0 && std::isfinite(survey_sigma_m),
+               "localize: survey_sigma_m must be finite and >= 0");
 }
 
 namespace {
@@ -155,6 +163,20 @@ Geodetic OriginOf(const Database& db, const std::string& path) {
   return *origin;
 }
 
+// The working focal length of the query images: at most `ratio` times the finest database
+// camera's (0: the query's own). Finer query pixels have no database features at their scale to
+// match; they cost extraction time only.
+double WorkingFocal(const Database& db, double ratio) {
+  if (ratio <= 0) return 0.0;
+  double focal = 0.0;
+  for (const DbDrive& drive : db.ReadDrives()) {
+    if (drive.camera_id == kInvalidCamera) continue;
+    const Camera& camera = db.ReadCamera(drive.camera_id).camera;
+    focal = std::max(focal, std::max(camera.fx, camera.fy));
+  }
+  return ratio * focal;
+}
+
 }  // namespace
 
 Localizer::Impl::Impl(const std::string& path, const Camera& camera, const LocalizeOptions& opts)
@@ -163,11 +185,20 @@ Localizer::Impl::Impl(const std::string& path, const Camera& camera, const Local
       db(path, Database::Mode::kReadOnly),
       enu(OriginOf(db, path)),
       route(db.ReadRoute()),
-      undistorter(camera) {
+      undistorter(camera, WorkingFocal(db, opts.max_focal_ratio)),
+      filter(opts.filter) {
   options.Check();
   db_frames = db.ReadFrames();
   EPILOC_CHECK(db_frames.size() >= 2, "{}: the database holds {} frames, at least 2 needed", path,
                db_frames.size());
+  for (const DbDrive& drive : db.ReadDrives()) {
+    if (!drive.complete) {
+      spdlog::warn(
+          "{}: survey drive '{}' is incomplete (its build was interrupted): frames beyond "
+          "the last one built are reported off_route",
+          path, drive.name);
+    }
+  }
   std::stable_sort(db_frames.begin(), db_frames.end(),
                    [](const DbFrame& a, const DbFrame& b) { return a.s_m < b.s_m; });
   const int num_db = static_cast<int>(db_frames.size());
@@ -317,18 +348,17 @@ double Localizer::Impl::SubFramePosition(const std::vector<PairResult>& pairs,
   return db_s[j];
 }
 
-void Localizer::Impl::Refine(const PreparedFrame& query,
-                             FrameEstimate* estimate,
-                             std::vector<PairResult>& pairs) {
+PoseRefinement Localizer::Impl::Refine(const PreparedFrame& query,
+                                       double s_reference_m,
+                                       const std::vector<PairResult>& pairs) {
   const Camera& camera = undistorter.undistorted_camera();
-  const double s = estimate->s_m;
-  estimate->refined = RefinePose(camera, query.features.keypoints, pairs, s, route, options.refine);
-  if (!options.refine.search_by_projection || estimate->refined->status != RefineStatus::kOk) {
-    return;
-  }
+  PoseRefinement refined =
+      RefinePose(camera, query.features.keypoints, pairs, s_reference_m, route, options.refine);
+  if (!options.refine.search_by_projection || refined.status != RefineStatus::kOk) return refined;
   // The local map: the points seen by the database frames from local_map_behind_m behind to
   // local_map_ahead_m ahead of the estimate (far points constrain the along-track position), the
   // evaluated window's first.
+  const double s = refined.projection.s_m;
   std::vector<std::shared_ptr<const FrameMapPoints>> local_map;
   for (const PairResult& p : pairs) local_map.push_back(evaluator->MapPoints(p.db_index));
   for (const int j : FramesBetween(db_s, s - options.refine.local_map_behind_m,
@@ -337,8 +367,72 @@ void Localizer::Impl::Refine(const PreparedFrame& query,
   }
   const std::vector<float> root_sift =
       ToRootSift(query.features.descriptors, query.features.size());
-  estimate->refined = RefineByProjection(camera, query.features.keypoints, root_sift, local_map,
-                                         *estimate->refined, s, route, options.refine);
+  return RefineByProjection(camera, query.features.keypoints, root_sift, local_map, refined,
+                            s_reference_m, route, options.refine);
+}
+
+void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
+  struct Measurement {
+    double s_m, sigma_m;
+    bool* accepted;
+    const char* name;
+  };
+  std::vector<Measurement> measurements;
+  if (est->epipolar.valid) {
+    measurements.push_back(
+        {est->epipolar.l_m, est->epipolar.sigma_m, &est->epipolar_accepted, "epipolar"});
+  }
+  if (est->refined && est->refined->status == RefineStatus::kOk) {
+    const PoseRefinement& r = *est->refined;
+    est->pnp_sigma_m = std::hypot(r.sigma_along_m, options.evidence.pnp_floor_sigma_m);
+    measurements.push_back({r.projection.s_m, est->pnp_sigma_m, &est->pnp_accepted, "pnp"});
+  }
+  // The better-supported (smaller sigma) first: when the two disagree, the track takes it.
+  std::sort(measurements.begin(), measurements.end(),
+            [](const Measurement& a, const Measurement& b) { return a.sigma_m < b.sigma_m; });
+  const auto consistent = [](const Measurement& a, const Measurement& b) {
+    const double d = a.s_m - b.s_m;
+    return d * d <= 10.83 * (a.sigma_m * a.sigma_m + b.sigma_m * b.sigma_m);
+  };
+  if (measurements.size() == 2 && !consistent(measurements[0], measurements[1])) {
+    est->conflict = true;
+  }
+  if (!filter.initialised()) {
+    if (measurements.empty()) return;
+    // (Re)initialisation: from the best-supported measurement, and the other if it agrees.
+    filter.Initialise(t, measurements[0].s_m, measurements[0].sigma_m);
+    *measurements[0].accepted = true;
+    confirmed = false;
+    if (measurements.size() == 2 && !est->conflict) {
+      filter.Update(measurements[1].s_m, measurements[1].sigma_m);
+      *measurements[1].accepted = true;
+      confirmed = true;  // two independent measurements agree
+    }
+    if (est->conflict) {
+      est->note = fmt::format("{} {:+.2f} m from {}: not used", measurements[1].name,
+                              measurements[1].s_m - measurements[0].s_m, measurements[0].name);
+    }
+    return;
+  }
+  bool refused = false;
+  for (const Measurement& m : measurements) {
+    if (filter.Accepts(m.s_m, m.sigma_m)) {
+      filter.Update(m.s_m, m.sigma_m);
+      *m.accepted = true;
+      confirmed = true;
+    } else {
+      refused = true;
+      if (!est->note.empty()) est->note += "; ";
+      est->note += fmt::format("{} {:+.2f} m from the track (sigma {:.2f} m): refused", m.name,
+                               m.s_m - filter.s_m(), m.sigma_m);
+    }
+  }
+  if (!confirmed && refused) {
+    // The first measurement of this track disagrees with the next one: it was the wrong one
+    // as likely as this one. Start again from the next frame.
+    filter.Reset();
+    est->note += "; initialisation not confirmed";
+  }
 }
 
 Localizer::Localizer(const std::string& db_path,
@@ -381,20 +475,28 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   if (options.use_gps && query.gnss) {
     est.gnss = query.gnss;
     est.gnss_on_route = impl.route.Project(impl.enu.ToEnu(*query.gnss));
-    off_route = std::abs(est.gnss_on_route->cross_track_m) > options.off_route_m;
+    // Beside the route, or beyond one of its ends, by more than the GPS prior can be wrong.
+    const double s_gnss = est.gnss_on_route->s_m;
+    off_route = std::abs(est.gnss_on_route->cross_track_m) > options.off_route_m ||
+                s_gnss < -options.off_route_m ||
+                s_gnss > impl.route.length_m() + options.off_route_m;
   }
   const double t = query.timestamp_s;
   const int64_t pairs_before = impl.num_pairs;
+  AlongTrackFilter& filter = impl.filter;
+  if (filter.initialised()) filter.Predict(t);
 
+  // The window: around the prediction while tracking (as wide as its uncertainty), else from
+  // retrieval and the GNSS prior.
   std::vector<PairResult> pairs;
   if (!off_route) {
-    if (!impl.tracking) {
-      pairs = impl.Initialise(query, est.gnss_on_route, &est.reinitialised);
+    if (filter.initialised()) {
+      const double half_width = std::min(std::max(options.track_window_m, 3.0 * filter.sigma_s_m()),
+                                         options.gps_window_m);
+      pairs =
+          impl.Evaluate(query, impl.Window(filter.s_m() - half_width, filter.s_m() + half_width));
     } else {
-      const double predicted = impl.s_est + impl.velocity * (t - impl.t_est);
-      const double margin =
-          options.track_window_m + 0.5 * std::abs(impl.velocity * (t - impl.t_est));
-      pairs = impl.Evaluate(query, impl.Window(predicted - margin, predicted + margin));
+      pairs = impl.Initialise(query, est.gnss_on_route, &est.reinitialised);
     }
   }
 
@@ -416,43 +518,67 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
     ++est.window_extensions;
   }
 
-  const std::vector<std::pair<int, double>> row = RowCosts(pairs);
   est.nearest_db_index = NearestPair(pairs);
   for (const PairResult& p : pairs) {
     if (p.db_index == est.nearest_db_index) est.nearest_inliers = p.num_inliers;
   }
-  if (est.nearest_db_index >= 0) {
-    if (!impl.tracking || !impl.online) {
-      if (!impl.online) {
-        impl.online =
-            std::make_unique<OnlineDtw>(impl.num_db_frames(), est.nearest_db_index, options.dtw);
-      } else {
-        impl.online->Reset(est.nearest_db_index);
-      }
-    }
-    est.db_index = impl.online->Push(row);
-    est.db_frame = impl.db_frames[est.db_index].frame;
-    for (const PairResult& p : pairs) {
-      if (p.db_index == est.db_index) est.num_inliers = p.num_inliers;
-    }
-    const double s = impl.SubFramePosition(pairs, est.db_index, &est.fit);
-    est.s_m = s;
-    est.position = impl.enu.ToGeodetic(impl.route.PointAt(s));
+  // Evidence: the epipolar measurement over the pairs that count, and the 6-DoF pose.
+  est.epipolar = MeasureAlongTrack(pairs, impl.db_s, impl.undistorter.undistorted_camera().fx,
+                                   options.evidence);
+  if (impl.refine && (est.epipolar.valid || filter.initialised())) {
+    const double reference = filter.initialised() ? filter.s_m() : est.epipolar.l_m;
+    est.refined = impl.Refine(query, reference, pairs);
+  }
+  impl.Fuse(t, &est);
+  const bool updated = est.epipolar_accepted || est.pnp_accepted;
+  impl.misses = updated ? 0 : impl.misses + 1;
+  if (filter.initialised() && impl.misses >= options.lost_after_frames) {
+    filter.Reset();  // lost: the next frame re-initialises
+    if (!est.note.empty()) est.note += "; ";
+    est.note += "track lost";
+  }
+  // Beyond the first or last database camera no pair brackets the vehicle: the evidence only
+  // extrapolates, and the track would run on along the route's extension.
+  const bool beyond_end =
+      filter.initialised() && (filter.s_m() < impl.db_s.front() - options.route_end_margin_m ||
+                               filter.s_m() > impl.db_s.back() + options.route_end_margin_m);
+  if (beyond_end) {
+    off_route = true;
+    if (!est.note.empty()) est.note += "; ";
+    est.note += fmt::format("{:.1f} m beyond the route's {}",
+                            filter.s_m() < impl.db_s.front() ? impl.db_s.front() - filter.s_m()
+                                                             : filter.s_m() - impl.db_s.back(),
+                            filter.s_m() < impl.db_s.front() ? "start" : "end");
+  }
+  if (filter.initialised() && !impl.confirmed) {
+    if (!est.note.empty()) est.note += "; ";
+    est.note += "initialising: waiting for a second measurement";
+  }
+  if (!beyond_end && impl.confirmed && filter.initialised() &&
+      filter.sigma_s_m() <= options.max_sigma_m) {
     est.status = TrackStatus::kOk;
-    if (impl.refine) impl.Refine(query, &est, pairs);
-    if (impl.have_estimate && t > impl.t_est) {
-      const double v = (s - impl.s_est) / (t - impl.t_est);
-      impl.velocity = impl.tracking ? 0.5 * impl.velocity + 0.5 * v : 0.0;
+    est.s_m = filter.s_m();
+    est.sigma_along_m = filter.sigma_s_m();
+    est.position = impl.enu.ToGeodetic(impl.route.PointAt(est.s_m));
+    const auto nearest = std::lower_bound(impl.db_s.begin(), impl.db_s.end(), est.s_m);
+    int j = static_cast<int>(nearest - impl.db_s.begin());
+    if (j == impl.num_db_frames() ||
+        (j > 0 && est.s_m - impl.db_s[j - 1] < impl.db_s[j] - est.s_m)) {
+      --j;
     }
-    impl.s_est = s;
-    impl.t_est = t;
-    impl.have_estimate = true;
-    impl.tracking = true;
-    impl.misses = 0;
+    est.db_index = j;
+    est.db_frame = impl.db_frames[j].frame;
+    for (const PairResult& p : pairs) {
+      if (p.db_index == j) est.num_inliers = p.num_inliers;
+    }
   } else {
-    if (impl.online) impl.online->Push(row);
-    if (++impl.misses >= options.lost_after_frames) impl.tracking = false;
     est.status = off_route ? TrackStatus::kOffRoute : TrackStatus::kLost;
+    if (filter.initialised()) {
+      if (!est.note.empty()) est.note += "; ";
+      est.note += fmt::format("sigma {:.2f} m", filter.sigma_s_m());
+    } else if (est.note.empty() && !est.epipolar.failure.empty()) {
+      est.note = est.epipolar.failure;
+    }
   }
   est.num_pairs = static_cast<int>(impl.num_pairs - pairs_before);
   // The point matches served the refinement; dropping them keeps memory flat.

@@ -11,6 +11,7 @@
 #include "epiloc/geo/geodetic.h"
 #include "epiloc/geo/route.h"
 #include "epiloc/localize/localizer.h"
+#include "epiloc/localize/track_filter.h"
 #include "epiloc/retrieval/global_descriptor.h"
 
 namespace epiloc {
@@ -38,7 +39,12 @@ struct Localizer::Impl {
                                      const std::optional<RouteProjection>& gnss,
                                      bool* reinitialised);
   std::vector<int> Window(double from_s_m, double to_s_m) const;
-  void Refine(const PreparedFrame& query, FrameEstimate* estimate, std::vector<PairResult>& pairs);
+  // The 6-DoF refinement around `s_reference_m` (PnP, then search by projection).
+  PoseRefinement Refine(const PreparedFrame& query,
+                        double s_reference_m,
+                        const std::vector<PairResult>& pairs);
+  // Fuses the frame's measurements into the track (see Track).
+  void Fuse(double timestamp_s, FrameEstimate* estimate);
 
   int num_db_frames() const;
   // Sub-frame position around database frame j from the valid pairs (V-fit, or the bracketing
@@ -60,12 +66,14 @@ struct Localizer::Impl {
   GlobalIndex retrieval_index;
   std::unordered_map<int64_t, int> db_index_of_image;
 
-  // Tracking state.
-  std::unique_ptr<OnlineDtw> online;
-  bool tracking = false;
-  int misses = 0;
-  double s_est = 0.0, velocity = 0.0, t_est = 0.0;
-  bool have_estimate = false;
+  // Tracking state: the filter is initialised while the vehicle is tracked.
+  AlongTrackFilter filter;
+  int misses = 0;  // consecutive frames without an accepted measurement
+  // The track has been confirmed since its (re)initialisation: by two agreeing measurements of
+  // the first frame, or by a later frame's measurement passing the gate. Until then its frames
+  // are not reported ok: one measurement alone (a degenerate epipole, a car still in the turn
+  // into the street) must not place the vehicle.
+  bool confirmed = false;
 
   int64_t num_pairs = 0;
   int num_reinitialisations = 0;

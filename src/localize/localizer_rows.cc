@@ -12,7 +12,18 @@ namespace epiloc {
 namespace {
 
 // Columns of ExtraColumns(), by position.
-enum Extra { kFitResidual, kInliers, kRefine, kCrossTrack, kHeading, kRmse, kNumExtra };
+enum Extra {
+  kSigmaAlong,
+  kSigmaHorizontal,
+  kInliers,
+  kPairsUsed,
+  kRefine,
+  kCrossTrack,
+  kHeading,
+  kRmse,
+  kFlags,
+  kNumExtra
+};
 
 ResultRow MakeRow(frame_t frame,
                   double timestamp_s,
@@ -21,7 +32,7 @@ ResultRow MakeRow(frame_t frame,
                   std::optional<double> s_m,
                   frame_t db_frame,
                   const std::optional<Geodetic>& position,
-                  double residual_m,
+                  double sigma_along_m,
                   int inliers) {
   ResultRow r;
   r.frame = frame;
@@ -38,9 +49,26 @@ ResultRow MakeRow(frame_t frame,
   }
   if (db_frame != kInvalidFrame) r.db_frame = db_frame;
   r.extra.assign(kNumExtra, "");
-  if (std::isfinite(residual_m)) r.extra[kFitResidual] = FormatFixed(residual_m, 4);
+  if (std::isfinite(sigma_along_m)) r.extra[kSigmaAlong] = FormatFixed(sigma_along_m, 4);
   if (inliers >= 0) r.extra[kInliers] = std::to_string(inliers);
   return r;
+}
+
+// What the `flags` column says of a frame: evidence refused, a conflict, a re-initialisation.
+std::string Flags(const FrameEstimate& est) {
+  std::string flags;
+  const auto add = [&](const char* flag) {
+    if (!flags.empty()) flags += '|';
+    flags += flag;
+  };
+  if (est.reinitialised) add("reinitialised");
+  if (est.conflict) add("conflict");
+  if (est.epipolar.valid && !est.epipolar_accepted) add("epipolar_refused");
+  if (est.refined && est.refined->status == RefineStatus::kOk && !est.pnp_accepted) {
+    add("pnp_refused");
+  }
+  if (!est.epipolar_accepted && !est.pnp_accepted) add("predicted");
+  return flags;
 }
 
 ResultStatus LostStatus(bool off_route) {
@@ -50,9 +78,9 @@ ResultStatus LostStatus(bool off_route) {
 }  // namespace
 
 const std::vector<std::string>& Localizer::ExtraColumns() {
-  static const std::vector<std::string> kColumns = {"fit_residual_m", "inliers",
-                                                    "refine",         "cross_track_m",
-                                                    "heading_deg",    "reprojection_rmse_px"};
+  static const std::vector<std::string> kColumns = {
+      "sigma_along_m", "sigma_horizontal_m",   "inliers", "pairs_used", "refine", "cross_track_m",
+      "heading_deg",   "reprojection_rmse_px", "flags"};
   return kColumns;
 }
 
@@ -81,9 +109,12 @@ std::vector<ResultRow> Localizer::Rows(const FrameEstimate& est) const {
   const bool ok = est.status == TrackStatus::kOk;
   if (options.all_methods || options.mode == LocalizeOptions::Mode::kOnline) {
     if (ok) {
-      rows.push_back(MakeRow(est.frame, est.timestamp_s, "online", ResultStatus::kOk, est.s_m,
-                             est.db_frame, est.position,
-                             est.fit.valid ? est.fit.rms_residual_m : NAN, est.num_inliers));
+      ResultRow r = MakeRow(est.frame, est.timestamp_s, "online", ResultStatus::kOk, est.s_m,
+                            est.db_frame, est.position,
+                            std::hypot(est.sigma_along_m, options.survey_sigma_m), est.num_inliers);
+      r.extra[kPairsUsed] = std::to_string(est.epipolar.num_used);
+      r.extra[kFlags] = Flags(est);
+      rows.push_back(std::move(r));
     } else {
       rows.push_back(MakeRow(est.frame, est.timestamp_s, "online", LostStatus(off_route),
                              std::nullopt, kInvalidFrame, std::nullopt, NAN, -1));
@@ -98,18 +129,27 @@ std::vector<ResultRow> Localizer::Rows(const FrameEstimate& est) const {
     return rows;
   }
   const PoseRefinement& ref = *est.refined;
-  if (ref.status != RefineStatus::kOk) {
-    ResultRow r =
-        MakeRow(est.frame, est.timestamp_s, "pnp", ResultStatus::kOk, est.s_m, est.db_frame,
-                est.position, est.fit.valid ? est.fit.rms_residual_m : NAN, ref.num_inliers);
-    r.extra[kRefine] = RefineStatusName(ref.status);
+  if (ref.status != RefineStatus::kOk || !est.pnp_accepted) {
+    // The online estimate, flagged: the pose was too thin, failed its checks, or the track
+    // refused it (it disagreed with better-supported evidence).
+    ResultRow r = MakeRow(est.frame, est.timestamp_s, "pnp", ResultStatus::kOk, est.s_m,
+                          est.db_frame, est.position,
+                          std::hypot(est.sigma_along_m, options.survey_sigma_m), ref.num_inliers);
+    r.extra[kRefine] = ref.status != RefineStatus::kOk ? RefineStatusName(ref.status) : "refused";
+    r.extra[kFlags] = Flags(est);
     rows.push_back(std::move(r));
     return rows;
   }
   const Eigen::Vector3d& centre = ref.enu_from_cam.translation;
   const Geodetic position = impl.enu.ToGeodetic(centre);
   ResultRow r = MakeRow(est.frame, est.timestamp_s, "pnp", ResultStatus::kOk, ref.projection.s_m,
-                        est.db_frame, position, NAN, ref.num_inliers);
+                        est.db_frame, position, std::hypot(est.pnp_sigma_m, options.survey_sigma_m),
+                        ref.num_inliers);
+  r.extra[kSigmaHorizontal] =
+      FormatFixed(std::hypot(ref.sigma_horizontal_m, options.evidence.pnp_floor_sigma_m,
+                             options.survey_sigma_m),
+                  4);
+  r.extra[kFlags] = Flags(est);
   const Eigen::Matrix3d rotation = ref.enu_from_cam.rotation.toRotationMatrix();
   r.enu_from_cam =
       Eigen::Quaterniond(impl.enu.EnuFromLocalEnu(position).transpose() * rotation).normalized();
@@ -170,8 +210,8 @@ std::vector<ResultRow> Localizer::OfflineRows() const {
       VFitResult fit;
       const double s = impl.SubFramePosition(rec.valid_pairs, j, &fit);
       rows.push_back(MakeRow(rec.frame, rec.timestamp_s, fit_name, ResultStatus::kOk, s,
-                             match.frame, impl.enu.ToGeodetic(impl.route.PointAt(s)),
-                             fit.valid ? fit.rms_residual_m : NAN, fit.num_inliers));
+                             match.frame, impl.enu.ToGeodetic(impl.route.PointAt(s)), NAN,
+                             fit.num_inliers));
     }
   };
   if (options.all_methods || options.mode == LocalizeOptions::Mode::kFixed) {

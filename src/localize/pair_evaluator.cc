@@ -53,8 +53,8 @@ std::shared_ptr<const PairEvaluator::CachedFrame> PairEvaluator::Load(int db_ind
     FeatureDescriptors observed(static_cast<int>(points.size()), 128);
     for (size_t k = 0; k < points.size(); ++k) {
       EPILOC_CHECK(points[k].feature_index < frame->descriptors.rows(),
-                   "{}: image {} has a point observation of feature {} of {}", db_.path(),
-                   image_id, points[k].feature_index, frame->descriptors.rows());
+                   "{}: image {} has a point observation of feature {} of {}", db_.path(), image_id,
+                   points[k].feature_index, frame->descriptors.rows());
       observed.row(static_cast<int>(k)) = frame->descriptors.row(points[k].feature_index);
       map_points->point_id.push_back(points[k].point_id);
       map_points->point_in_enu.push_back(points[k].position_in_enu);
@@ -144,6 +144,16 @@ PairResult PairEvaluator::EpipoleOfMatches(const Camera& query_camera,
   result.signed_distance = epipole.signed_distance;
   result.num_matches = epipole.num_matches;
   result.num_inliers = epipole.num_inliers;
+  result.parallax_deg = epipole.median_parallax_deg;
+  if (epipole.valid) {
+    // The database camera's direction from the query, turned into the database camera's frame:
+    // that camera looks along the route, so the query's own heading (a turn, a lane change)
+    // drops out of the cotangent.
+    const Eigen::Vector3d v = epipole.db_from_query * epipole.db_center_in_query;
+    result.signed_cot = std::abs(v.x()) > 0 ? v.z() / std::abs(v.x()) : std::copysign(1e12, v.z());
+    result.heading_deg =
+        std::atan2(epipole.db_from_query(0, 2), epipole.db_from_query(2, 2)) * 180.0 / M_PI;
+  }
   result.failure = epipole.failure;
   if (options_.with_points) {
     for (const auto& [query_row, db_row] : rows) {

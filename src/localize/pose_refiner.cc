@@ -88,7 +88,8 @@ PoseRefinement SolveAndCheck(const Camera& camera,
   const double along = out.projection.s_m - s_epipolar_m;
   if (std::abs(along) > options.max_along_disagreement_m) {
     out.status = RefineStatus::kRejected;
-    out.message = fmt::format("PnP pose {:+.2f} m along the route from the epipolar estimate", along);
+    out.message =
+        fmt::format("PnP pose {:+.2f} m along the route from the epipolar estimate", along);
     return out;
   }
   if (std::abs(out.projection.cross_track_m) > options.max_cross_track_m) {
@@ -96,6 +97,13 @@ PoseRefinement SolveAndCheck(const Camera& camera,
     out.message = fmt::format("PnP pose {:.1f} m off the route", out.projection.cross_track_m);
     return out;
   }
+  // Uncertainty of the camera centre along the route and horizontally (ENU x, y).
+  Eigen::Vector3d along_axis = route.DirectionAt(out.projection.s_m);
+  along_axis.z() = 0.0;
+  if (along_axis.norm() > 1e-9) along_axis.normalize();
+  out.sigma_along_m = std::sqrt(std::max(0.0, along_axis.dot(pnp.center_covariance * along_axis)));
+  out.sigma_horizontal_m =
+      std::sqrt(std::max(0.0, pnp.center_covariance(0, 0) + pnp.center_covariance(1, 1)));
   out.status = RefineStatus::kOk;
   return out;
 }
@@ -145,14 +153,15 @@ PoseRefinement RefinePose(const Camera& camera,
   return SolveAndCheck(camera, pixels, points, s_epipolar_m, route, options);
 }
 
-PoseRefinement RefineByProjection(const Camera& camera,
-                                  const FeatureKeypoints& keypoints,
-                                  const std::vector<float>& query_root_sift,
-                                  const std::vector<std::shared_ptr<const FrameMapPoints>>& local_map,
-                                  const PoseRefinement& initial,
-                                  double s_epipolar_m,
-                                  const Route& route,
-                                  const RefineOptions& options) {
+PoseRefinement RefineByProjection(
+    const Camera& camera,
+    const FeatureKeypoints& keypoints,
+    const std::vector<float>& query_root_sift,
+    const std::vector<std::shared_ptr<const FrameMapPoints>>& local_map,
+    const PoseRefinement& initial,
+    double s_epipolar_m,
+    const Route& route,
+    const RefineOptions& options) {
   if (initial.status != RefineStatus::kOk) return initial;
   const int num_query = static_cast<int>(keypoints.rows());
   EPILOC_CHECK(query_root_sift.size() >= static_cast<size_t>(num_query) * 128,

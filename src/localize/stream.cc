@@ -176,9 +176,29 @@ LocalizeRun Localize(const std::string& db_path,
 
 DiagnosticsCsv::DiagnosticsCsv(const std::string& path, const Localizer& localizer)
     : out_(path,
-           {"frame", "timestamp_s", "gps_s_m", "db_frame", "db_s_m", "valid", "d", "signed_d",
-            "matches", "inliers", "failure", "online_db_frame", "fit_l_m", "fit_residual_m",
-            "reinitialised", "frame_seconds"}) {
+           {"frame",
+            "timestamp_s",
+            "gps_s_m",
+            "db_frame",
+            "db_s_m",
+            "valid",
+            "d",
+            "signed_d",
+            "matches",
+            "inliers",
+            "parallax_deg",
+            "failure",
+            "verdict",
+            "epipolar_l_m",
+            "epipolar_sigma_m",
+            "pnp_s_m",
+            "pnp_sigma_m",
+            "online_s_m",
+            "online_sigma_m",
+            "status",
+            "note",
+            "reinitialised",
+            "frame_seconds"}) {
   for (int j = 0; j < localizer.num_db_frames(); ++j) {
     db_frame_numbers_.push_back(localizer.db_frame_number(j));
     db_s_m_.push_back(localizer.db_s_m(j));
@@ -186,19 +206,35 @@ DiagnosticsCsv::DiagnosticsCsv(const std::string& path, const Localizer& localiz
 }
 
 void DiagnosticsCsv::Write(const FrameEstimate& est) {
-  const std::string online_frame =
-      est.db_index >= 0 ? std::to_string(db_frame_numbers_[est.db_index]) : "";
-  for (const PairResult& p : est.pairs) {
-    out_.WriteRow({std::to_string(est.frame), FormatDouble(est.timestamp_s),
+  const bool ok = est.status == TrackStatus::kOk;
+  const bool pnp = est.refined && est.refined->status == RefineStatus::kOk;
+  for (size_t k = 0; k < est.pairs.size(); ++k) {
+    const PairResult& p = est.pairs[k];
+    const char* verdict =
+        k < est.epipolar.verdicts.size() ? PairVerdictName(est.epipolar.verdicts[k]) : "";
+    out_.WriteRow({std::to_string(est.frame),
+                   FormatDouble(est.timestamp_s),
                    est.gnss_on_route ? FormatFixed(est.gnss_on_route->s_m, 3) : "",
                    std::to_string(db_frame_numbers_[p.db_index]),
-                   FormatFixed(db_s_m_[p.db_index], 3), p.valid ? "1" : "0",
+                   FormatFixed(db_s_m_[p.db_index], 3),
+                   p.valid ? "1" : "0",
                    p.valid ? FormatDouble(p.distance) : "",
-                   p.valid ? FormatDouble(p.signed_distance) : "", std::to_string(p.num_matches),
-                   std::to_string(p.num_inliers), p.failure, online_frame,
-                   est.fit.valid ? FormatFixed(est.fit.l_m, 3) : "",
-                   est.fit.valid ? FormatFixed(est.fit.rms_residual_m, 4) : "",
-                   est.reinitialised ? "1" : "0", FormatFixed(est.tracking_seconds, 4)});
+                   p.valid ? FormatDouble(p.signed_distance) : "",
+                   std::to_string(p.num_matches),
+                   std::to_string(p.num_inliers),
+                   p.valid ? FormatFixed(p.parallax_deg, 3) : "",
+                   p.failure,
+                   verdict,
+                   est.epipolar.valid ? FormatFixed(est.epipolar.l_m, 3) : "",
+                   est.epipolar.valid ? FormatFixed(est.epipolar.sigma_m, 4) : "",
+                   pnp ? FormatFixed(est.refined->projection.s_m, 3) : "",
+                   pnp ? FormatFixed(est.pnp_sigma_m, 4) : "",
+                   ok ? FormatFixed(est.s_m, 3) : "",
+                   ok ? FormatFixed(est.sigma_along_m, 4) : "",
+                   TrackStatusName(est.status),
+                   est.note,
+                   est.reinitialised ? "1" : "0",
+                   FormatFixed(est.tracking_seconds, 4)});
   }
 }
 

@@ -6,9 +6,8 @@
 #include <map>
 #include <thread>
 
-#include <flann/flann.hpp>
-
 #include "epiloc/core/error.h"
+#include "epiloc/feature/kd_forest.h"
 #include "epiloc/feature/matcher.h"
 
 namespace epiloc {
@@ -25,12 +24,12 @@ namespace {
 
 using RootSift = std::vector<float>;
 
-// FLANN keeps pointers into the buffers it indexes, not copies.
+// The forest keeps pointers into the buffers it indexes, not copies.
 struct Frame {
   std::shared_ptr<const RootSift> buffer;  // owns `rows`
   const float* rows = nullptr;             // num_rows x 128
   int num_rows = 0;
-  size_t first_id = 0;  // FLANN point id of row 0; rows have consecutive ids
+  size_t first_id = 0;  // forest point id of row 0; rows have consecutive ids
   int slot = -1;        // dense frame number used by Match
 };
 
@@ -42,11 +41,11 @@ struct PointRef {
 }  // namespace
 
 struct WindowMatcher::Impl {
-  std::unique_ptr<flann::Index<flann::L2<float>>> index;
+  std::unique_ptr<KdForest> index;
   std::map<int, Frame> frames;     // the window, by database index
   std::vector<int> slot_db_index;  // -1 = free slot
-  // FLANN point id -> (frame slot, row) for every point added since the last full build. FLANN
-  // numbers points in insertion order and keeps the numbers across removals.
+  // Forest point id -> (frame slot, row) for every point added since the last full build. The
+  // forest numbers points in insertion order and keeps the numbers across removals.
   std::vector<PointRef> points;
   // Every buffer the index points into, removed frames' too: insertion into a leaf reads the
   // leaf's point even when it was removed, so a buffer lives until the next full build.
@@ -123,7 +122,7 @@ void WindowMatcher::SetWindow(const std::vector<int>& db_indices, const LoadFn& 
   if (!rebuild) {
     for (int db_index : leaving) {
       const Frame& frame = impl.frames.at(db_index);
-      for (int r = 0; r < frame.num_rows; ++r) impl.index->removePoint(frame.first_id + r);
+      for (int r = 0; r < frame.num_rows; ++r) impl.index->Remove(frame.first_id + r);
       impl.slot_db_index[frame.slot] = -1;
       impl.frames.erase(db_index);
     }
@@ -132,9 +131,7 @@ void WindowMatcher::SetWindow(const std::vector<int>& db_indices, const LoadFn& 
       frame.slot = impl.TakeSlot(db_index);
       impl.AppendPoints(frame);
       if (frame.num_rows > 0) {
-        flann::Matrix<float> matrix(const_cast<float*>(frame.rows), frame.num_rows, 128);
-        // Threshold 0 turns FLANN's own rebuild off: the full build above also frees buffers.
-        impl.index->addPoints(matrix, 0.0f);
+        impl.index->Add(frame.rows, static_cast<size_t>(frame.num_rows));
         impl.buffers.push_back(frame.buffer);
       }
       impl.frames.emplace(db_index, std::move(frame));
@@ -163,10 +160,8 @@ void WindowMatcher::SetWindow(const std::vector<int>& db_indices, const LoadFn& 
   impl.num_removed = 0;
   impl.built_size = impl.points.size();
   if (!impl.points.empty()) {
-    flann::Matrix<float> matrix(block->data(), impl.points.size(), 128);
-    impl.index = std::make_unique<flann::Index<flann::L2<float>>>(
-        matrix, flann::KDTreeIndexParams(options_.num_trees));
-    impl.index->buildIndex();
+    impl.index = std::make_unique<KdForest>(options_.num_trees);
+    impl.index->Build(block->data(), impl.points.size());
   }
   ++impl.rebuilds;
 }
@@ -205,17 +200,12 @@ std::unordered_map<int, std::vector<WindowMatch>> WindowMatcher::Match(
   const size_t num_results = static_cast<size_t>(num_query) * k;
   std::vector<size_t> ids(num_results, std::numeric_limits<size_t>::max());
   std::vector<float> distances(num_results, std::numeric_limits<float>::infinity());
-  flann::SearchParams params(checks);
-  params.cores = 1;  // FLANN's own threading needs OpenMP; blocks of rows go to our threads
-  params.sorted = true;
   // Searching the (read-only) trees from several threads at once is safe.
   auto search = [&](int begin, int end) {
     if (begin >= end) return;
     const size_t offset = static_cast<size_t>(begin);
-    flann::Matrix<float> query_matrix(query_rows.data() + offset * 128, end - begin, 128);
-    flann::Matrix<size_t> id_matrix(ids.data() + offset * k, end - begin, k);
-    flann::Matrix<float> distance_matrix(distances.data() + offset * k, end - begin, k);
-    impl.index->knnSearch(query_matrix, id_matrix, distance_matrix, k, params);
+    impl.index->Search(query_rows.data() + offset * 128, static_cast<size_t>(end - begin), k,
+                       checks, ids.data() + offset * k, distances.data() + offset * k);
   };
   const int threads = std::min(num_threads, std::max(1, num_query / 64));
   std::vector<std::thread> workers;
@@ -229,7 +219,7 @@ std::unordered_map<int, std::vector<WindowMatch>> WindowMatcher::Match(
   const size_t num_slots = impl.slot_db_index.size();
   std::vector<std::vector<WindowMatch>> best(num_slots);
   for (const auto& entry : impl.frames) best[entry.second.slot].resize(entry.second.num_rows);
-  // FLANN's L2 gives squared distances; the ratio test compares distances.
+  // The forest gives squared distances; the ratio test compares distances.
   const float ratio2 = static_cast<float>(ratio * ratio);
   struct Candidate {
     int slot;

@@ -2,6 +2,8 @@
 // drive (the development scenario of the issue), evaluated with the eval module.
 #include "epiloc/localize/stream.h"
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <iostream>
 
@@ -21,7 +23,9 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("epiloc_localizer_test_" + name);
+  // Per process: the same test may run from another checkout at the same time.
+  const fs::path dir = fs::temp_directory_path() /
+                       ("epiloc_localizer_test_" + name + "_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;

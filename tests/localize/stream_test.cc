@@ -67,9 +67,11 @@ TEST(Stream, TrackFrameByFrameGivesTheBatchRows) {
     const ResultRow& other = *by_key[Key(row)];
     EXPECT_EQ(row.status, other.status) << Key(row);
     EXPECT_EQ(row.has_s, other.has_s) << Key(row);
-    // FLANN's kd-trees are randomised (std::random_device), so two runs may differ by a few
-    // matches: centimetres on this street.
-    if (row.has_s && other.has_s) EXPECT_NEAR(row.s_m, other.s_m, 0.15) << Key(row);
+    // Every random choice is seeded (kd-forest, RANSAC): the same frames give the same rows.
+    if (row.has_s && other.has_s) EXPECT_EQ(row.s_m, other.s_m) << Key(row);
+    EXPECT_EQ(row.position.lat_deg, other.position.lat_deg) << Key(row);
+    EXPECT_EQ(row.position.lon_deg, other.position.lon_deg) << Key(row);
+    EXPECT_EQ(row.extra, other.extra) << Key(row);
     ok += row.status == ResultStatus::kOk ? 1 : 0;
   }
   EXPECT_GT(ok, static_cast<int>(rows.size()) * 9 / 10);

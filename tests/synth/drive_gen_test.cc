@@ -1,6 +1,8 @@
 #include "epiloc/synth/drive_gen.h"
 
+#include <unistd.h>
 #include <cmath>
+
 #include <filesystem>
 #include <fstream>
 
@@ -42,7 +44,9 @@ World SmallWorld() {
 }
 
 std::string TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("epiloc_synth_" + name);
+  // Per process: the same test may run from another checkout at the same time.
+  const fs::path dir =
+      fs::temp_directory_path() / ("epiloc_synth_" + name + "_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   return dir.string();
 }
@@ -200,9 +204,9 @@ TEST(GenerateSynthetic, QueryOnlyWritesTheSameQueryAndNoSurveyFrames) {
   EXPECT_EQ(b.num_survey_frames, 0);
   ASSERT_EQ(a.num_query_frames, b.num_query_frames);
   EXPECT_FALSE(fs::exists(fs::path(query_only) / "survey"));
-  for (const std::string file : {"query/drive.json", "query/frames.csv", "query/gnss.csv",
-                                 "query/ground_truth.csv", "query/images/000000.png",
-                                 "query/images/000003.png", "world.json"}) {
+  for (const std::string file :
+       {"query/drive.json", "query/frames.csv", "query/gnss.csv", "query/ground_truth.csv",
+        "query/images/000000.png", "query/images/000003.png", "world.json"}) {
     ASSERT_TRUE(fs::exists(fs::path(query_only) / file)) << file;
     EXPECT_EQ(HashFile((fs::path(full) / file).string()),
               HashFile((fs::path(query_only) / file).string()))

@@ -73,6 +73,16 @@ struct FrameError {
   double vertical_m = 0.0;
   double error_3d_m = 0.0;
   double rotation_deg = NAN;  // NaN when the row or the ground truth has no orientation
+  // The row's own uncertainty (extra columns sigma_along_m, sigma_horizontal_m), NaN if none.
+  double sigma_along_m = NAN;
+  double sigma_horizontal_m = NAN;
+};
+
+// How honest a method's uncertainty is: the share of its evaluated frames whose error is within
+// twice the standard deviation it reported (about 95 % for Gaussian errors and honest sigmas).
+struct Calibration {
+  int64_t count = 0;  // evaluated frames that carry a sigma
+  double share_within_2_sigma = NAN;
 };
 
 struct MethodEvaluation {
@@ -84,7 +94,9 @@ struct MethodEvaluation {
   std::vector<double> unmatched_times_s;  // their times
   std::vector<FrameError> frames;         // evaluated = ok and matched, by time
   ErrorStatistics along_track, cross_track, horizontal, vertical, error_3d;
-  ErrorStatistics rotation;  // degrees, over the frames with a rotation error (count may be 0)
+  ErrorStatistics rotation;       // degrees, over the frames with a rotation error (count may be 0)
+  Calibration along_calibration;  // |along-track error| <= 2 sigma_along_m
+  Calibration horizontal_calibration;  // horizontal error <= 2 sigma_horizontal_m
 
   int64_t ok() const { return by_status[static_cast<size_t>(ResultStatus::kOk)]; }
   int64_t not_localized() const { return rows - ok(); }

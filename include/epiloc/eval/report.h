@@ -21,6 +21,10 @@ std::string FormatEvaluationTables(const Evaluation& eval);
 // written as null).
 std::string EvaluationJson(const Evaluation& eval);
 void WriteEvaluationJson(const Evaluation& eval, const std::string& path);
+// One row per evaluated frame and method: truth and estimated s, the errors (along-track,
+// cross-track, horizontal, vertical, 3-D in metres, rotation in degrees) and the row's sigmas
+// (empty where the method gives none). "-": standard output.
+void WriteFrameErrorsCsv(const Evaluation& eval, const std::string& path);
 
 struct ReportOptions {
   std::string gnuplot = "gnuplot";  // gnuplot executable (Debian: apt-get install gnuplot-nox)

@@ -1,5 +1,5 @@
-// Descriptor matching with a FLANN kd-tree forest (Muja & Lowe) on RootSIFT vectors, Lowe's ratio
-// test and one-to-one matches.
+// Descriptor matching with a seeded kd-tree forest (KdForest: FLANN's algorithm, Muja & Lowe) on
+// RootSIFT vectors, Lowe's ratio test and one-to-one matches.
 #pragma once
 
 #include <memory>
@@ -12,21 +12,21 @@ namespace epiloc {
 struct MatchOptions {
   // Lowe's ratio test: keep a match if best distance < ratio * second best.
   double ratio = 0.8;
-  // Randomised kd-trees in the FLANN index.
+  // Randomised kd-trees in the forest.
   int num_trees = 4;
-  // Leaves FLANN visits per search: more is slower and closer to exact search.
+  // Distances the forest computes per search: more is slower and closer to exact search.
   int num_checks = 64;
 
   void Check() const;
 };
 
 struct FeatureMatch {
-  int index_a = -1;  // row in the indexed set (e.g. the query frame)
-  int index_b = -1;  // row in the searched set (e.g. a database frame)
+  int index_a = -1;       // row in the indexed set (e.g. the query frame)
+  int index_b = -1;       // row in the searched set (e.g. a database frame)
   float distance = 0.0f;  // RootSIFT L2 distance
 };
 
-// A FLANN index over one feature set (typically the query frame's), built once and searched with
+// A kd-forest over one feature set (typically the query frame's), built once and searched with
 // many others (the candidate database frames). Thread-safe for concurrent Match() calls.
 class DescriptorIndex {
  public:

@@ -26,11 +26,14 @@ struct PnpOptions {
 
 struct PnpResult {
   bool success = false;
-  Rigid3d cam_from_world;          // x_cam = R * x_world + t
-  std::vector<char> inlier_mask;   // per correspondence
+  Rigid3d cam_from_world;         // x_cam = R * x_world + t
+  std::vector<char> inlier_mask;  // per correspondence
   int num_inliers = 0;
-  double rmse_px = 0.0;            // reprojection RMSE over the inliers, pixels
-  std::string message;             // why it failed ("" on success)
+  double rmse_px = 0.0;  // reprojection RMSE over the inliers, pixels
+  // Covariance of the camera centre in the world frame (m^2), from the inliers' Gauss-Newton
+  // normal matrix and their residual scale; meaningful when success.
+  Eigen::Matrix3d center_covariance = Eigen::Matrix3d::Zero();
+  std::string message;  // why it failed ("" on success)
 };
 
 // Estimates cam_from_world from pixels `points2d` of the distortion-free pinhole `camera` and

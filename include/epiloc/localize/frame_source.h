@@ -68,6 +68,8 @@ class FollowDriveSource : public FrameSource {
   double poll_interval_s_;
   std::vector<FrameRecord> pending_;
   size_t next_pending_ = 0;
+  double polled_at_s_ =
+      0.0;  // when pending_ was read: the frames' arrival (latency counts from it)
 };
 
 struct VideoSourceOptions {

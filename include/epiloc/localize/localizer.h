@@ -38,8 +38,10 @@
 #include "epiloc/geo/route.h"
 #include "epiloc/io/result.h"
 #include "epiloc/localize/dtw.h"
+#include "epiloc/localize/evidence.h"
 #include "epiloc/localize/pair_evaluator.h"
 #include "epiloc/localize/pose_refiner.h"
+#include "epiloc/localize/track_filter.h"
 #include "epiloc/localize/vfit.h"
 
 namespace epiloc {
@@ -65,10 +67,31 @@ struct LocalizeOptions {
   int max_window_frames = 8;
   // The V-fit uses database frames within this distance of the DTW match (at least 2.5 spacings).
   double fit_window_m = 2.6;
-  // Consecutive frames without a valid pair after which the track is lost (re-initialised).
+  // Consecutive frames without an accepted measurement after which the track is lost (and
+  // re-initialised from retrieval / the GNSS prior).
   int lost_after_frames = 3;
+  // A frame whose tracked position has a larger standard deviation is reported lost, not placed:
+  // a position that uncertain is no longer the few decimetres a user relies on.
+  double max_sigma_m = 0.5;
   // A GPS prior farther than this from the route marks the frame off the route (not snapped).
   double off_route_m = 30.0;
+  // A track farther than this beyond the first or last database camera is off the route: there
+  // every pair has the vehicle on the same side, and the along-track line fitted to them is
+  // extrapolated, its error growing with the distance. Two metres is one to two survey spacings
+  // at the usual 1-1.5 m, where the extrapolation is still within the tracking window.
+  double route_end_margin_m = 2.0;
+  // One-sigma error of the survey positions themselves as they reach the database, added in
+  // quadrature to every reported sigma (not to the measurements: it is common to neighbouring
+  // frames and does not average out). An RTK/INS survey: 1-2 cm of RTK, plus the camera-to-GNSS
+  // time offset and lever arm (a 3 ms offset is 3 cm at 10 m/s). Set it to the survey's own
+  // figure (e.g. 0 for exact synthetic positions, metres for a GNSS-only survey).
+  double survey_sigma_m = 0.05;
+  // Working resolution: query images are reduced (one remap with the undistortion) until their
+  // focal length is at most this times the database camera's; 0 keeps the query's own. A query
+  // finer than the survey adds pixels, not matches: SIFT matches features of similar scale, and
+  // the survey holds none finer than its own pixels (the margin allows for viewpoint and for
+  // the query being nearer to the side of the street).
+  double max_focal_ratio = 1.25;
   // Strongest query features used.
   int max_query_features = 2000;
   // Threads for pair evaluation inside Track (0 = one per core). Extraction ahead of the tracker
@@ -83,6 +106,11 @@ struct LocalizeOptions {
   // features too fine to match are then skipped, PairOptions::min_db_feature_angle_rad).
   SiftOptions sift = QuerySiftDefaults();
   PairOptions pairs;
+  // Which pairs count and the epipolar position measurement (online).
+  EvidenceOptions evidence;
+  // The tracked position: motion model, speed limits, gating (online).
+  TrackFilterOptions filter;
+  // The paper's offline methods (free, fixed): DTW and V-fit.
   DtwOptions dtw;
   VFitOptions vfit;
   // 6-DoF refinement against the survey's 3-D points (`pnp` rows), when the database has them.
@@ -127,15 +155,24 @@ struct FrameEstimate {
   frame_t frame = kInvalidFrame;
   double timestamp_s = 0.0;
   TrackStatus status = TrackStatus::kLost;
-  // The online estimate (status kOk): along-route distance, camera centre on the route.
+  // The online estimate (status kOk): the tracked along-route distance (epipolar and 6-DoF
+  // evidence fused under the motion model), its standard deviation, the camera centre on the
+  // route.
   double s_m = 0.0;
+  double sigma_along_m = 0.0;
   Geodetic position;
-  int db_index = -1;                 // the DTW match, index into the route's database frames
+  int db_index = -1;                 // the database frame nearest to s_m (route order)
   frame_t db_frame = kInvalidFrame;  // its frame number
-  int num_inliers = -1;              // inliers of the pair with the DTW match (-1: none)
-  VFitResult fit;                    // the V-fit around the match
-  bool reinitialised = false;        // the window came from a (re)initialisation
-  int window_extensions = 0;         // times the window was extended to bracket the vehicle
+  int num_inliers = -1;              // inliers of the pair with that frame (-1: none)
+  AlongTrackMeasurement epipolar;    // the frame's epipolar measurement and pair verdicts
+  double pnp_sigma_m = 0.0;          // along-track sigma of the 6-DoF measurement (when refined)
+  bool epipolar_accepted = false;    // it moved the track
+  bool pnp_accepted = false;         // the 6-DoF pose's position moved the track
+  // The two disagreed: the better-supported one (consistent with the track) won.
+  bool conflict = false;
+  std::string note;            // why evidence was refused, why the frame is lost, ...
+  bool reinitialised = false;  // the window came from a (re)initialisation
+  int window_extensions = 0;   // times the window was extended to bracket the vehicle
   // The GNSS prior of the frame and its projection onto the route.
   std::optional<Geodetic> gnss;
   std::optional<RouteProjection> gnss_on_route;

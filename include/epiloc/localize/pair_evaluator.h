@@ -69,6 +69,13 @@ struct PairResult {
   double signed_distance = 0.0;  // d with the sign of q_z (database camera ahead = positive)
   int num_matches = 0;
   int num_inliers = 0;
+  double parallax_deg = 0.0;  // median rotation-compensated angle between matched rays
+  // v_z / |v_x| for v the database camera centre's direction from the query, in the database
+  // camera's frame (x right, z forward along the route): the signed cotangent of the baseline
+  // with the query's heading cancelled (f * signed_distance when the two cameras are parallel).
+  double signed_cot = 0.0;
+  // Yaw of the query camera relative to the database camera, degrees (+ = turned right).
+  double heading_deg = 0.0;
   std::string failure;
   std::vector<PointMatch> point_matches;  // with PairOptions::with_points (all ratio-test matches)
 };

@@ -28,11 +28,13 @@
 namespace epiloc {
 
 struct RefineOptions {
-  bool enabled = true;              // run the refinement when the database has structure
-  int min_correspondences = 20;     // fewer 2D-3D correspondences: thin structure
-  int min_inliers = 15;             // fewer PnP inliers: thin structure
-  double max_along_disagreement_m = 1.5;  // |s_pnp - s_epipolar| above this: rejected
-  double max_cross_track_m = 8.0;   // farther from the route: rejected
+  bool enabled = true;           // run the refinement when the database has structure
+  int min_correspondences = 20;  // fewer 2D-3D correspondences: thin structure
+  int min_inliers = 15;          // fewer PnP inliers: thin structure
+  // |s_pnp - s_reference| above this: rejected before the tracker weighs the pose (beyond a
+  // window the local map around the reference no longer holds the true place).
+  double max_along_disagreement_m = 8.0;
+  double max_cross_track_m = 8.0;  // farther from the route: rejected
   PnpOptions pnp = DefaultPnp();
   // Search by projection (RefineByProjection): radius around each projected point, largest
   // RootSIFT distance accepted, ratio of best to second best within the radius.
@@ -40,8 +42,8 @@ struct RefineOptions {
   double search_radius_px = 4.0;
   double max_descriptor_distance = 0.7;
   double search_ratio = 0.9;
-  double local_map_behind_m = 2.0;   // database frames searched by projection: this far behind
-  double local_map_ahead_m = 10.0;   // ... to this far ahead of the epipolar estimate
+  double local_map_behind_m = 2.0;  // database frames searched by projection: this far behind
+  double local_map_ahead_m = 10.0;  // ... to this far ahead of the epipolar estimate
 
   void Check() const;
   static PnpOptions DefaultPnp();
@@ -52,12 +54,16 @@ const char* RefineStatusName(RefineStatus status);
 
 struct PoseRefinement {
   RefineStatus status = RefineStatus::kThin;
-  std::string message;              // why not ok ("" when ok)
-  Rigid3d enu_from_cam;             // camera pose in the database ENU frame (when ok)
-  RouteProjection projection;       // its camera centre on the route (when ok)
+  std::string message;         // why not ok ("" when ok)
+  Rigid3d enu_from_cam;        // camera pose in the database ENU frame (when ok)
+  RouteProjection projection;  // its camera centre on the route (when ok)
   int num_correspondences = 0;
   int num_inliers = 0;
   double rmse_px = 0.0;
+  // Standard deviations of the camera centre (PnP covariance; when ok): along the route and
+  // horizontally (the root of the horizontal covariance's trace), metres.
+  double sigma_along_m = 0.0;
+  double sigma_horizontal_m = 0.0;
 };
 
 // Refines the pose of a query frame (undistorted pinhole `camera`, its `keypoints`) from the
@@ -77,13 +83,14 @@ PoseRefinement RefinePose(const Camera& camera,
 // radius; a feature claimed by several points keeps the closest descriptor); PnP again on these
 // correspondences, with the same checks. Returns the new pose if it is ok with more inliers than
 // `initial`, else `initial`. `query_root_sift`: 128 floats per keypoint row (ToRootSift).
-PoseRefinement RefineByProjection(const Camera& camera,
-                                  const FeatureKeypoints& keypoints,
-                                  const std::vector<float>& query_root_sift,
-                                  const std::vector<std::shared_ptr<const FrameMapPoints>>& local_map,
-                                  const PoseRefinement& initial,
-                                  double s_epipolar_m,
-                                  const Route& route,
-                                  const RefineOptions& options);
+PoseRefinement RefineByProjection(
+    const Camera& camera,
+    const FeatureKeypoints& keypoints,
+    const std::vector<float>& query_root_sift,
+    const std::vector<std::shared_ptr<const FrameMapPoints>>& local_map,
+    const PoseRefinement& initial,
+    double s_epipolar_m,
+    const Route& route,
+    const RefineOptions& options);
 
 }  // namespace epiloc

@@ -1,8 +1,9 @@
 // Matching one query frame against a whole window of database frames with one search: the RootSIFT
-// descriptors of the window's frames live in one FLANN kd-tree forest (Muja & Lowe), updated
-// incrementally as the window slides along the route, and each query descriptor is searched once
-// for its K nearest database descriptors, which are then split by database frame for Lowe's ratio
-// test. It replaces one kd-tree search per (query, database) pair with one per query frame.
+// descriptors of the window's frames live in one seeded kd-tree forest (KdForest: FLANN's
+// algorithm, Muja & Lowe), updated incrementally as the window slides along the route, and each
+// query descriptor is searched once for its K nearest database descriptors, which are then split by
+// database frame for Lowe's ratio test. It replaces one kd-tree search per (query, database) pair
+// with one per query frame.
 #pragma once
 
 #include <functional>
@@ -15,7 +16,7 @@
 namespace epiloc {
 
 struct WindowMatcherOptions {
-  // Randomised kd-trees in the FLANN index. The window is rebuilt every few query frames, so
+  // Randomised kd-trees in the forest. The window is rebuilt every few query frames, so
   // build time counts: 2 trees cost ~12 % less per frame than 4 at the same accuracy (KITTI
   // development scenario, README).
   int num_trees = 2;

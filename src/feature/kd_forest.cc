@@ -1,0 +1,263 @@
+#include "epiloc/feature/kd_forest.h"
+
+#include <algorithm>
+#include <array>
+#include <functional>
+#include <limits>
+#include <numeric>
+
+#include <Eigen/Core>
+
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+namespace {
+
+// FLANN's constants: the mean and variance of a node are estimated from its first 100 points, and
+// the split dimension is drawn among the 5 of highest variance.
+constexpr int kSampleMean = 100;
+constexpr int kRandomDims = 5;
+
+// SplitMix64 (Steele et al. 2014): small, fast, and the same sequence on every platform, unlike
+// the standard distributions, whose algorithms are left to the library.
+uint64_t NextRandom(uint64_t& state) {
+  uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+int RandomBelow(uint64_t& state, int n) {
+  return static_cast<int>(NextRandom(state) % static_cast<uint64_t>(n));
+}
+
+// Squared L2 distance, abandoned (returning a partial sum above `bound`) once it exceeds `bound`:
+// most candidates of a search are farther than the current k-th neighbour.
+float SquaredDistance(const float* a, const float* b, float bound) {
+  constexpr int kBlock = 32;
+  using Block = Eigen::Matrix<float, kBlock, 1>;
+  float sum = 0.0f;
+  for (int offset = 0; offset < KdForest::kDim; offset += kBlock) {
+    sum +=
+        (Eigen::Map<const Block>(a + offset) - Eigen::Map<const Block>(b + offset)).squaredNorm();
+    if (sum > bound) break;
+  }
+  return sum;
+}
+
+}  // namespace
+
+KdForest::KdForest(int num_trees, uint32_t seed) : num_trees_(num_trees), seed_(seed) {
+  EPILOC_CHECK(num_trees >= 1, "kd-forest: num_trees must be >= 1, got {}", num_trees);
+}
+
+void KdForest::Build(const float* rows, size_t num_rows) {
+  EPILOC_CHECK(num_rows < std::numeric_limits<uint32_t>::max(),
+               "kd-forest: {} rows are too many for one index", num_rows);
+  points_.resize(num_rows);
+  for (size_t i = 0; i < num_rows; ++i) points_[i] = rows + i * kDim;
+  removed_.assign(num_rows, 0);
+  num_removed_ = 0;
+  trees_.assign(num_trees_, Tree());
+  if (num_rows == 0) return;
+  uint64_t rng = seed_;
+  std::vector<uint32_t> ids(num_rows);
+  std::iota(ids.begin(), ids.end(), 0u);
+  for (Tree& tree : trees_) {
+    // Fisher-Yates: each tree samples its node means from another random subset.
+    for (size_t i = num_rows - 1; i > 0; --i) {
+      std::swap(ids[i], ids[RandomBelow(rng, static_cast<int>(i + 1))]);
+    }
+    tree.nodes.reserve(2 * num_rows);
+    tree.root = Divide(tree, ids.data(), static_cast<int>(num_rows), rng);
+  }
+}
+
+int KdForest::Divide(Tree& tree, uint32_t* ids, int count, uint64_t& rng) {
+  const int index = static_cast<int>(tree.nodes.size());
+  tree.nodes.emplace_back();
+  if (count == 1) {
+    tree.nodes[index].point = ids[0];
+    tree.nodes[index].row = points_[ids[0]];
+    return index;
+  }
+  // Mean and variance per dimension over a sample of the node's points.
+  const int sample = std::min(count, kSampleMean);
+  std::array<float, kDim> mean{}, var{};
+  for (int i = 0; i < sample; ++i) {
+    const float* p = points_[ids[i]];
+    for (int d = 0; d < kDim; ++d) mean[d] += p[d];
+  }
+  for (int d = 0; d < kDim; ++d) mean[d] /= static_cast<float>(sample);
+  for (int i = 0; i < sample; ++i) {
+    const float* p = points_[ids[i]];
+    for (int d = 0; d < kDim; ++d) var[d] += (p[d] - mean[d]) * (p[d] - mean[d]);
+  }
+  // One of the dimensions of highest variance, at random: the trees differ where it matters least.
+  std::array<int, kDim> order;
+  std::iota(order.begin(), order.end(), 0);
+  std::partial_sort(order.begin(), order.begin() + kRandomDims, order.end(),
+                    [&](int a, int b) { return var[a] > var[b] || (var[a] == var[b] && a < b); });
+  const int divfeat = order[RandomBelow(rng, kRandomDims)];
+  const float divval = mean[divfeat];
+  // Split at the mean; ties go to whichever side balances the tree (FLANN's planeSplit).
+  uint32_t* end = ids + count;
+  uint32_t* less =
+      std::partition(ids, end, [&](uint32_t id) { return points_[id][divfeat] < divval; });
+  uint32_t* less_equal =
+      std::partition(less, end, [&](uint32_t id) { return points_[id][divfeat] <= divval; });
+  const int lim1 = static_cast<int>(less - ids), lim2 = static_cast<int>(less_equal - ids);
+  int split = lim1 > count / 2 ? lim1 : lim2 < count / 2 ? lim2 : count / 2;
+  if (lim1 == count || lim2 == 0) split = count / 2;  // all on one side: halve
+  if (split == 0 || split == count) split = count / 2;
+
+  const int left = Divide(tree, ids, split, rng);
+  const int right = Divide(tree, ids + split, count - split, rng);
+  Node& node = tree.nodes[index];
+  node.child[0] = left;
+  node.child[1] = right;
+  node.divfeat = divfeat;
+  node.divval = divval;
+  return index;
+}
+
+void KdForest::Add(const float* rows, size_t num_rows) {
+  EPILOC_CHECK(points_.size() + num_rows < std::numeric_limits<uint32_t>::max(),
+               "kd-forest: {} rows are too many for one index", points_.size() + num_rows);
+  if (trees_.empty()) trees_.assign(num_trees_, Tree());
+  for (size_t i = 0; i < num_rows; ++i) {
+    const uint32_t id = static_cast<uint32_t>(points_.size());
+    points_.push_back(rows + i * kDim);
+    removed_.push_back(0);
+    for (Tree& tree : trees_) Insert(tree, id);
+  }
+}
+
+void KdForest::Insert(Tree& tree, uint32_t id) {
+  const float* p = points_[id];
+  if (tree.root < 0) {
+    tree.root = static_cast<int>(tree.nodes.size());
+    tree.nodes.emplace_back();
+    tree.nodes.back().point = id;
+    tree.nodes.back().row = p;
+    return;
+  }
+  int n = tree.root;
+  while (tree.nodes[n].child[0] >= 0) {
+    const Node& node = tree.nodes[n];
+    n = node.child[p[node.divfeat] < node.divval ? 0 : 1];
+  }
+  // The leaf becomes a split between its point and the new one along their widest difference.
+  const uint32_t old = tree.nodes[n].point;
+  const float* q = points_[old];
+  int divfeat = 0;
+  float span = -1.0f;
+  for (int d = 0; d < kDim; ++d) {
+    const float s = std::abs(p[d] - q[d]);
+    if (s > span) span = s, divfeat = d;
+  }
+  const float divval = 0.5f * (p[divfeat] + q[divfeat]);
+  const int a = static_cast<int>(tree.nodes.size());
+  tree.nodes.emplace_back();
+  tree.nodes.emplace_back();
+  const bool new_left = p[divfeat] < divval;
+  tree.nodes[a].point = new_left ? id : old;
+  tree.nodes[a].row = new_left ? p : q;
+  tree.nodes[a + 1].point = new_left ? old : id;
+  tree.nodes[a + 1].row = new_left ? q : p;
+  Node& node = tree.nodes[n];
+  node.child[0] = a;
+  node.child[1] = a + 1;
+  node.divfeat = divfeat;
+  node.divval = divval;
+}
+
+void KdForest::Remove(size_t id) {
+  EPILOC_CHECK(id < points_.size(), "kd-forest: no point {} (size {})", id, points_.size());
+  if (!removed_[id]) {
+    removed_[id] = 1;
+    ++num_removed_;
+  }
+}
+
+void KdForest::Search(const float* queries,
+                      size_t num_queries,
+                      int k,
+                      int checks,
+                      size_t* ids,
+                      float* distances) const {
+  EPILOC_CHECK(k >= 1, "kd-forest: k must be >= 1, got {}", k);
+  EPILOC_CHECK(checks >= 1, "kd-forest: checks must be >= 1, got {}", checks);
+  struct Branch {
+    float mindist;
+    int tree;
+    int node;
+    bool operator>(const Branch& other) const { return mindist > other.mindist; }
+  };
+  // A min-heap on mindist in a plain vector, emptied in O(1) after each search.
+  std::vector<Branch> heap;
+  const auto push = [&heap](const Branch& branch) {
+    heap.push_back(branch);
+    std::push_heap(heap.begin(), heap.end(), std::greater<Branch>());
+  };
+  std::vector<uint8_t> checked(points_.size(), 0);
+  std::vector<uint32_t> touched;
+
+  for (size_t qi = 0; qi < num_queries; ++qi) {
+    const float* q = queries + qi * kDim;
+    size_t* out_ids = ids + qi * k;
+    float* out_d = distances + qi * k;
+    std::fill(out_ids, out_ids + k, std::numeric_limits<size_t>::max());
+    std::fill(out_d, out_d + k, std::numeric_limits<float>::infinity());
+    int found = 0;
+    int done = 0;
+    // out_d[k-1] is the current k-th distance (infinite until k are found).
+    auto search_from = [&](int t, int n, float mindist) {
+      const Tree& tree = trees_[t];
+      while (true) {
+        if (mindist > out_d[k - 1]) return;
+        const Node& node = tree.nodes[n];
+        if (node.child[0] < 0) {
+          const uint32_t id = node.point;
+          if (checked[id] || removed_[id]) return;
+          if (done >= checks && found == k) return;
+          checked[id] = 1;
+          touched.push_back(id);
+          ++done;
+          const float d = SquaredDistance(q, node.row, out_d[k - 1]);
+          if (d >= out_d[k - 1]) return;
+          int pos = std::min(found, k - 1);
+          while (pos > 0 && out_d[pos - 1] > d) {
+            out_d[pos] = out_d[pos - 1];
+            out_ids[pos] = out_ids[pos - 1];
+            --pos;
+          }
+          out_d[pos] = d;
+          out_ids[pos] = id;
+          found = std::min(found + 1, k);
+          return;
+        }
+        const float diff = q[node.divfeat] - node.divval;
+        const int near = node.child[diff < 0 ? 0 : 1];
+        const int far = node.child[diff < 0 ? 1 : 0];
+        const float far_dist = mindist + diff * diff;
+        if (far_dist < out_d[k - 1]) push({far_dist, t, far});
+        n = near;
+      }
+    };
+    for (int t = 0; t < static_cast<int>(trees_.size()); ++t) {
+      if (trees_[t].root >= 0) search_from(t, trees_[t].root, 0.0f);
+    }
+    while (!heap.empty() && (done < checks || found < k)) {
+      std::pop_heap(heap.begin(), heap.end(), std::greater<Branch>());
+      const Branch branch = heap.back();
+      heap.pop_back();
+      search_from(branch.tree, branch.node, branch.mindist);
+    }
+    heap.clear();
+    for (uint32_t id : touched) checked[id] = 0;
+    touched.clear();
+  }
+}
+
+}  // namespace epiloc

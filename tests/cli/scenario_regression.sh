@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# scenario_regression.sh EPILOC NAME SEED "WORLD_OPTIONS" "QUERY_OPTIONS": one scenario of the
+# suite (tools/bench_scenarios.sh) that made the tracker jump before it weighed its evidence
+# (issue 16), on a 60 m street: generate, build the database, localize with the default options,
+# evaluate, and check the targets on the worst frame: online along-track max <= 1.0 m and mean
+# <= 0.15 m, pnp max <= 0.3 m and mean <= 0.05 m, >= 95 % of frames localized, >= 90 % of the
+# frames with a sigma within 2 sigma of the truth.
+set -euo pipefail
+epiloc=$1 name=$2 seed=$3 world_options=$4 query_options=$5
+dir=$(mktemp -d "${TMPDIR:-/tmp}/epiloc_scenario_${name}.XXXXXX")
+trap 'rm -rf "$dir"' EXIT
+# shellcheck disable=SC2086
+"$epiloc" synth --out "$dir/world" --seed "$seed" --length-m 60 --no-lidar -q \
+  $world_options $query_options
+"$epiloc" build-db --drive "$dir/world/survey" --db "$dir/route.sqlite" -q
+"$epiloc" localize --db "$dir/route.sqlite" --drive "$dir/world/query" --out "$dir/result.csv" -q
+"$epiloc" evaluate --result "$dir/result.csv" --truth "$dir/world/query" \
+  --route "$dir/route.sqlite" --json "$dir/summary.json" -q
+frames=$(($(wc -l < "$dir/world/query/frames.csv") - 1))
+python3 - "$dir/summary.json" "$frames" "$name" <<'PY'
+import json, sys
+summary, frames, name = json.load(open(sys.argv[1])), int(sys.argv[2]), sys.argv[3]
+methods = {m["method"]: m for m in summary["methods"]}
+failures = []
+def check(what, value, ok):
+    print(f"{name}: {what} {value:.3f}")
+    if not ok:
+        failures.append(f"{what} {value:.3f}")
+online, pnp = methods["online"], methods["pnp"]
+check("online localized share", online["counts"]["ok"] / frames, online["counts"]["ok"] >= 0.95 * frames)
+for m, max_m, mean_m in ((online, 1.0, 0.15), (pnp, 0.3, 0.05)):
+    a = m["along_track_m"]
+    worst = max(-a["min"], a["max"])
+    check(f"{m['method']} along-track max [m]", worst, worst <= max_m)
+    check(f"{m['method']} along-track mean [m]", a["mean_abs"], a["mean_abs"] <= mean_m)
+    c = m.get("calibration", {})  # absent before sigmas existed: a failure too
+    share = c.get("along_within_2_sigma") or 0.0
+    check(f"{m['method']} share within 2 sigma", share,
+          c.get("along_frames_with_sigma", 0) > 0 and share >= 0.90)
+if failures:
+    print(f"{name}: FAILED: " + "; ".join(failures))
+    sys.exit(1)
+PY
