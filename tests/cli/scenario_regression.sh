@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
-# scenario_regression.sh EPILOC NAME SEED "WORLD_OPTIONS" "QUERY_OPTIONS": one scenario of the
-# suite (tools/bench_scenarios.sh) that made the tracker jump before it weighed its evidence
-# (issue 16), on a 60 m street: generate, build the database, localize with the default options,
+# scenario_regression.sh EPILOC NAME SEED LENGTH_M "WORLD_OPTIONS" "QUERY_OPTIONS": one scenario of
+# the suite (tools/bench_scenarios.sh) with the seed of one of its runs, on a street of LENGTH_M
+# (the suite's is 80 m): generate, build the database, localize with the default options,
 # evaluate, and check the targets on the worst frame: online along-track max <= 1.0 m and mean
 # <= 0.15 m, pnp max <= 0.3 m and mean <= 0.05 m, >= 95 % of frames localized, >= 90 % of the
 # frames with a sigma within 2 sigma of the truth.
 set -euo pipefail
-epiloc=$1 name=$2 seed=$3 world_options=$4 query_options=$5
+epiloc=$1 name=$2 seed=$3 length_m=$4 world_options=$5 query_options=$6
 dir=$(mktemp -d "${TMPDIR:-/tmp}/epiloc_scenario_${name}.XXXXXX")
 trap 'rm -rf "$dir"' EXIT
 # shellcheck disable=SC2086
-"$epiloc" synth --out "$dir/world" --seed "$seed" --length-m 60 --no-lidar -q \
+"$epiloc" synth --out "$dir/world" --seed "$seed" --length-m "$length_m" --no-lidar -q \
   $world_options $query_options
 "$epiloc" build-db --drive "$dir/world/survey" --db "$dir/route.sqlite" -q
 "$epiloc" localize --db "$dir/route.sqlite" --drive "$dir/world/query" --out "$dir/result.csv" -q
