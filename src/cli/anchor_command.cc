@@ -68,13 +68,26 @@ ResultTable ToResultTable(const AnchorDriveResult& anchors,
                           const std::string& anchor_method) {
   ResultTable table;
   table.path = path;
-  table.extra_columns = {"anchor_status",     "inliers",       "matches",
-                         "rmse_px",           "prior_offset_m", "x_m",
-                         "y_m",               "z_m",           "candidate",
-                         "rounds",            "seconds",       "anchor_method",
-                         "scale_m_per_unit",  "seed_scale",    "inlier_share",
-                         "residual_m",        "along_info",    "along_sigma_m",
-                         "structure_points",  "message"};
+  table.extra_columns = {"anchor_status",
+                         "inliers",
+                         "matches",
+                         "rmse_px",
+                         "prior_offset_m",
+                         "x_m",
+                         "y_m",
+                         "z_m",
+                         "candidate",
+                         "rounds",
+                         "seconds",
+                         "anchor_method",
+                         "scale_m_per_unit",
+                         "seed_scale",
+                         "inlier_share",
+                         "residual_m",
+                         "along_info",
+                         "along_sigma_m",
+                         "structure_points",
+                         "message"};
   for (const AnchorResult& a : anchors.frames) {
     ResultRow row;
     row.frame = a.frame;
@@ -225,6 +238,20 @@ int RunAnchor(int argc, char** argv) {
                  "structure: reliability, RMS distance to the map's surfaces at most, metres")
       ->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  if (method == "auto") {
+    method = !inputs.photos_dir.empty() ? "photos"
+             : !inputs.vo_path.empty()  ? "structure"
+                                        : "render";
+  }
+  if (method != "structure" && method != "render" && method != "photos") {
+    Throw("--method: unknown anchoring method '{}' (auto, structure, render, photos)", method);
+  }
+  EPILOC_CHECK(method != "structure" || !inputs.vo_path.empty(),
+               "--method structure needs --vo (epiloc vo output)");
+  EPILOC_CHECK(method != "structure" || inputs.photos_dir.empty(),
+               "--method structure does not use --map-photos");
+  EPILOC_CHECK(method != "photos" || !inputs.photos_dir.empty(),
+               "--method photos needs --map-photos DRIVE");
 
   MapOriginInputs origin_inputs{inputs.cloud_path, std::nullopt, db_path};
   if (!origin_text.empty())
@@ -243,14 +270,9 @@ int RunAnchor(int argc, char** argv) {
   options.matching.type = ParseFeatureType(matcher);
   options.render.shading = ParseRenderShading(shading);
 
-  if (method == "auto") {
-    method = !inputs.photos_dir.empty() ? "photos" : !inputs.vo_path.empty() ? "structure" : "render";
-  }
   AnchorDriveResult result;
   Progress progress("anchor", 0);
   if (method == "structure") {
-    EPILOC_CHECK(!inputs.vo_path.empty(), "--method structure needs --vo (epiloc vo output)");
-    EPILOC_CHECK(inputs.photos_dir.empty(), "--method structure does not use --map-photos");
     structure.prior.camera_height_m = options.prior.camera_height_m;
     structure.gnss_sigma_m = options.gnss_sigma_m;
     structure.heading_error_deg = options.heading_error_deg;
@@ -258,13 +280,9 @@ int RunAnchor(int argc, char** argv) {
     structure.num_threads = options.num_threads;
     const VoStructure vo = VoStructure::Read(inputs.vo_path, vo_points_path);
     result = AnchorDriveByStructure(inputs, vo, structure, progress.Callback());
-  } else if (method == "render" || method == "photos") {
-    EPILOC_CHECK(method == "render" || !inputs.photos_dir.empty(),
-                 "--method photos needs --map-photos DRIVE");
+  } else {
     if (method == "render") inputs.photos_dir.clear();
     result = AnchorDrive(inputs, options, progress.Callback());
-  } else {
-    Throw("--method: unknown anchoring method '{}' (auto, structure, render, photos)", method);
   }
   progress.Finish();
   WriteResultCsv(ToResultTable(result, out_path, method), out_path);
