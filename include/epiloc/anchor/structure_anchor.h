@@ -14,8 +14,9 @@
 //     map's ground under f plus the camera height.
 //  3. Points farther than max_point_range_m (seed scale) from every window camera are dropped
 //     (monocular depth grows uncertain with range); robust Sim(3) ICP against the map
-//     (voxel-filtered to map_voxel_m) from the seed and from `seed_offsets_m` around it (the best
-//     fit by inliers, then residual, wins).
+//     (voxel-filtered to map_voxel_m) with its own seed search (structure_registration.h) from
+//     the seed and from `seed_offsets_m` around it (the best fit by inliers, then residual,
+//     wins); optionally refined over a shorter window (refine_window_m).
 //  4. The pose of f: map_from_cam = S * world_from_cam(f) (rotation composed, centre mapped).
 //     Reliable (`ok`) only with an inlier share >= min_inlier_share, RMS residual
 //     <= max_rms_m, scale within max_scale_change of the seed's, conditioning along the road
@@ -23,6 +24,9 @@
 //     max_prior_sigmas * gnss_sigma_m of the GNSS, at camera height over the map's ground and
 //     nearly level; else `rejected` with the reason.
 // Frames: map = the cloud's local ENU (metres); VO world = the trajectory's frame (its units).
+// Accuracy (README): on the shared KITTI drive about 0.9 m and 1.4 degrees (median), metres better
+// than a consumer GNSS but far from the photographs' centimetres: the ICP's cost on a sparse map
+// and a monocular structure has minima about a metre apart.
 #pragma once
 
 #include <string>
