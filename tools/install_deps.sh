@@ -5,7 +5,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake pkg-config ninja-build
-  libopencv-dev libeigen3-dev
+  libopencv-dev libeigen3-dev libflann-dev
   libsqlite3-dev sqlite3 libgeographiclib-dev
   libgtest-dev libgmock-dev
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev

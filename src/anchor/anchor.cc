@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
+#include "anchor_internal.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
@@ -260,12 +261,7 @@ ImageFeatures StrongestFirst(const ImageFeatures& features) {
   return SelectFeatures(features, order);
 }
 
-// Pitch (optical axis above the horizon) and roll (x axis below it) of a camera, degrees.
-std::pair<double, double> PitchRollDeg(const Eigen::Matrix3d& map_from_cam) {
-  const double pitch = std::asin(std::clamp(map_from_cam(2, 2), -1.0, 1.0)) * kRadToDeg;
-  const double roll = std::asin(std::clamp(-map_from_cam(2, 0), -1.0, 1.0)) * kRadToDeg;
-  return {pitch, roll};
-}
+using anchor_internal::PitchRollDeg;
 
 // The reliability checks of a solved pose: "" or why it is rejected.
 std::string Unreliable(const AnchorResult& r, const AnchorOptions& options) {

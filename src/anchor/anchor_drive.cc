@@ -37,6 +37,10 @@ class OpenCvThreadsGuard {
   int saved_;
 };
 
+}  // namespace
+
+namespace anchor_internal {
+
 std::vector<size_t> SelectFrames(const AnchorInputs& inputs, const Drive& drive) {
   std::vector<size_t> indices;
   if (inputs.frames.empty()) {
@@ -55,9 +59,6 @@ std::vector<size_t> SelectFrames(const AnchorInputs& inputs, const Drive& drive)
   return indices;
 }
 
-}  // namespace
-
-namespace anchor_internal {
 
 std::unique_ptr<TiledCloud> OpenMap(const std::string& path,
                                     const std::string& tile_dir_option,
@@ -131,7 +132,7 @@ AnchorDriveResult AnchorDrive(const AnchorInputs& inputs,
   if (drive.gnss.samples.empty()) {
     Throw("{}: the drive has no GNSS positions to anchor from", inputs.drive_dir);
   }
-  const std::vector<size_t> indices = SelectFrames(inputs, drive);
+  const std::vector<size_t> indices = anchor_internal::SelectFrames(inputs, drive);
   const std::unique_ptr<TiledCloud> map =
       anchor_internal::OpenMap(inputs.cloud_path, inputs.tile_dir, inputs.max_whole_points);
   const EnuFrame map_frame(inputs.map_origin);

@@ -1,12 +1,16 @@
 // Helpers shared by the anchor module's sources (not installed).
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
+#include <utility>
 #include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
 
+#include "epiloc/anchor/anchor.h"
 #include "epiloc/camera/camera.h"
 #include "epiloc/cloud/tiled_cloud.h"
 #include "epiloc/geo/geodetic.h"
@@ -26,6 +30,14 @@ inline Rigid3d MapFromSample(const EnuFrame& map_frame,
                              map_frame.ToEnu(position));
 }
 
+// Pitch (optical axis above the horizon) and roll (x axis below it) of a camera, degrees.
+inline std::pair<double, double> PitchRollDeg(const Eigen::Matrix3d& map_from_cam) {
+  constexpr double kRadToDeg = 180.0 / M_PI;
+  const double pitch = std::asin(std::clamp(map_from_cam(2, 2), -1.0, 1.0)) * kRadToDeg;
+  const double roll = std::asin(std::clamp(-map_from_cam(2, 0), -1.0, 1.0)) * kRadToDeg;
+  return {pitch, roll};
+}
+
 // The drive's camera poses with orientation: the ground truth if all its samples have one, else
 // the GNSS if all of its have; nullptr if neither.
 inline const PositionTrack* OrientedTrack(const Drive& drive) {
@@ -40,6 +52,10 @@ inline const PositionTrack* OrientedTrack(const Drive& drive) {
   if (oriented(drive.gnss)) return &drive.gnss;
   return nullptr;
 }
+
+// Indices (drive order) of the frames `inputs` selects (frames, else every `every`-th). Throws
+// Error for a frame number not in the drive.
+std::vector<size_t> SelectFrames(const AnchorInputs& inputs, const Drive& drive);
 
 // Opens a map for loading near poses: a tile directory as is; a single file whole when it holds
 // at most `max_whole_points` points, else cut once into a tile cache `tile_dir` (default

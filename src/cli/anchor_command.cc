@@ -9,6 +9,7 @@
 #include "cli_common.h"
 #include "epiloc/anchor/anchor.h"
 #include "epiloc/anchor/map_sidecar.h"
+#include "epiloc/anchor/structure_anchor.h"
 #include "epiloc/cli/commands.h"
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
@@ -62,12 +63,31 @@ std::string Fixed(double value, int digits) {
 }
 
 // One result row per anchored frame (method "anchor"); the figures as extra columns.
-ResultTable ToResultTable(const AnchorDriveResult& anchors, const std::string& path) {
+ResultTable ToResultTable(const AnchorDriveResult& anchors,
+                          const std::string& path,
+                          const std::string& anchor_method) {
   ResultTable table;
   table.path = path;
-  table.extra_columns = {"anchor_status",  "inliers", "matches", "rmse_px",
-                         "prior_offset_m", "x_m",     "y_m",     "z_m",
-                         "candidate",      "rounds",  "seconds", "message"};
+  table.extra_columns = {"anchor_status",
+                         "inliers",
+                         "matches",
+                         "rmse_px",
+                         "prior_offset_m",
+                         "x_m",
+                         "y_m",
+                         "z_m",
+                         "candidate",
+                         "rounds",
+                         "seconds",
+                         "anchor_method",
+                         "scale_m_per_unit",
+                         "seed_scale",
+                         "inlier_share",
+                         "residual_m",
+                         "along_info",
+                         "along_sigma_m",
+                         "structure_points",
+                         "message"};
   for (const AnchorResult& a : anchors.frames) {
     ResultRow row;
     row.frame = a.frame;
@@ -91,6 +111,14 @@ ResultTable ToResultTable(const AnchorDriveResult& anchors, const std::string& p
                  std::to_string(a.best_candidate),
                  std::to_string(a.rounds),
                  Fixed(a.seconds, 3),
+                 anchor_method,
+                 Fixed(a.scale_m_per_unit, 6),
+                 Fixed(a.seed_scale_m_per_unit, 6),
+                 Fixed(a.inlier_share, 3),
+                 Fixed(a.residual_m, 4),
+                 Fixed(a.along_information, 4),
+                 Fixed(a.along_sigma_m, 4),
+                 std::to_string(a.structure_points),
                  a.message};
     table.rows.push_back(std::move(row));
   }
@@ -101,16 +129,20 @@ ResultTable ToResultTable(const AnchorDriveResult& anchors, const std::string& p
 
 int RunAnchor(int argc, char** argv) {
   CLI::App app(
-      "Anchor camera frames in a LiDAR map: candidate poses around the GPS prior are rendered, "
-      "matched with the undistorted frame (AKAZE or SIFT), lifted to 3-D and solved by PnP "
-      "RANSAC + LM, then refined by re-rendering at the solved pose. Writes a result CSV "
-      "(method anchor) that epiloc evaluate reads.",
+      "Anchor camera frames in a LiDAR map. structure (the default with --vo): the drive's "
+      "monocular VO points over a sliding window are registered to the map by a GPS-seeded "
+      "robust ICP with scale (Sim(3)), no appearance matching. render / photos: candidate poses "
+      "around the GPS prior are rendered (or the map's photographs used), matched with the "
+      "undistorted frame (AKAZE or SIFT), lifted to 3-D and solved by PnP RANSAC + LM, then "
+      "refined. Writes a result CSV (method anchor) that epiloc evaluate and georef read.",
       "anchor");
   CommonFlags flags;
   AddCommonFlags(app, flags);
   AnchorInputs inputs;
   AnchorOptions options;
   std::string frames_text, out_path, origin_text, db_path, matcher = "akaze", shading = "auto";
+  std::string method = "auto", vo_points_path;
+  StructureAnchorOptions structure;
   app.add_option("--cloud", inputs.cloud_path, "Map: point-cloud file or tile directory")
       ->required();
   app.add_option("--drive", inputs.drive_dir, "Drive whose frames are anchored")->required();
@@ -180,14 +212,54 @@ int RunAnchor(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--threads", options.num_threads, "Frames anchored in parallel")
       ->capture_default_str();
+  app.add_option("--method", method,
+                 "auto | structure | render | photos (auto: photos with --map-photos, else "
+                 "structure with --vo, else render)")
+      ->capture_default_str();
+  app.add_option("--vo", inputs.vo_path,
+                 "structure: the drive's VO trajectory (epiloc vo TUM; its points file beside it)");
+  app.add_option("--vo-points", vo_points_path,
+                 "structure: the VO points CSV (default: beside --vo, .points.csv)");
+  app.add_option("--window", structure.window_m,
+                 "structure: road length of the keyframe window, metres")
+      ->capture_default_str();
+  app.add_option("--max-point-range", structure.max_point_range_m,
+                 "structure: VO points farther from the window's cameras are not used, metres")
+      ->capture_default_str();
+  app.add_option("--max-points", structure.max_points, "structure: VO points per window at most")
+      ->capture_default_str();
+  app.add_option("--map-voxel", structure.map_voxel_m,
+                 "structure: the map is voxel-filtered to this before the ICP, metres")
+      ->capture_default_str();
+  app.add_option("--min-inlier-share", structure.min_inlier_share,
+                 "structure: reliability, share of points on the map's surfaces at least")
+      ->capture_default_str();
+  app.add_option("--max-residual", structure.max_rms_m,
+                 "structure: reliability, RMS distance to the map's surfaces at most, metres")
+      ->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  if (method == "auto") {
+    method = !inputs.photos_dir.empty() ? "photos"
+             : !inputs.vo_path.empty()  ? "structure"
+                                        : "render";
+  }
+  if (method != "structure" && method != "render" && method != "photos") {
+    Throw("--method: unknown anchoring method '{}' (auto, structure, render, photos)", method);
+  }
+  EPILOC_CHECK(method != "structure" || !inputs.vo_path.empty(),
+               "--method structure needs --vo (epiloc vo output)");
+  EPILOC_CHECK(method != "structure" || inputs.photos_dir.empty(),
+               "--method structure does not use --map-photos");
+  EPILOC_CHECK(method != "photos" || !inputs.photos_dir.empty(),
+               "--method photos needs --map-photos DRIVE");
 
   MapOriginInputs origin_inputs{inputs.cloud_path, std::nullopt, db_path};
   if (!origin_text.empty())
     origin_inputs.explicit_origin = ParseGeodetic(origin_text, "--cloud-origin");
   const MapOrigin origin = ResolveMapOrigin(origin_inputs);
   inputs.map_origin = origin.enu_origin;
-  if (inputs.photos_dir.empty() && origin.sidecar && !origin.sidecar->source_dir.empty() &&
+  if (inputs.photos_dir.empty() && inputs.vo_path.empty() && origin.sidecar &&
+      !origin.sidecar->source_dir.empty() &&
       std::filesystem::is_directory(origin.sidecar->source_dir)) {
     spdlog::info(
         "the map was built from drive {}: if it has camera frames, --map-photos {} matches "
@@ -198,21 +270,33 @@ int RunAnchor(int argc, char** argv) {
   options.matching.type = ParseFeatureType(matcher);
   options.render.shading = ParseRenderShading(shading);
 
+  AnchorDriveResult result;
   Progress progress("anchor", 0);
-  const AnchorDriveResult result = AnchorDrive(inputs, options, progress.Callback());
+  if (method == "structure") {
+    structure.prior.camera_height_m = options.prior.camera_height_m;
+    structure.gnss_sigma_m = options.gnss_sigma_m;
+    structure.heading_error_deg = options.heading_error_deg;
+    structure.seed = options.seed;
+    structure.num_threads = options.num_threads;
+    const VoStructure vo = VoStructure::Read(inputs.vo_path, vo_points_path);
+    result = AnchorDriveByStructure(inputs, vo, structure, progress.Callback());
+  } else {
+    if (method == "render") inputs.photos_dir.clear();
+    result = AnchorDrive(inputs, options, progress.Callback());
+  }
   progress.Finish();
-  WriteResultCsv(ToResultTable(result, out_path), out_path);
+  WriteResultCsv(ToResultTable(result, out_path, method), out_path);
 
   int64_t by_status[5] = {0, 0, 0, 0, 0};
   for (const AnchorResult& a : result.frames) ++by_status[static_cast<int>(a.status)];
   const size_t n = result.frames.size();
   std::printf(
       "%s: %lld of %zu frames anchored (ok), %lld rejected, %lld lost, %lld without map "
-      "coverage, %lld without prior; %.2f s per frame (%.1f s wall, %d threads)\n",
+      "coverage, %lld without prior; %.2f s per frame (%.1f s wall, %d threads; method %s)\n",
       out_path.c_str(), static_cast<long long>(by_status[0]), n,
       static_cast<long long>(by_status[1]), static_cast<long long>(by_status[2]),
       static_cast<long long>(by_status[3]), static_cast<long long>(by_status[4]),
-      n > 0 ? result.seconds / n : 0.0, result.seconds, options.num_threads);
+      n > 0 ? result.seconds / n : 0.0, result.seconds, options.num_threads, method.c_str());
   return kExitOk;
 }
 

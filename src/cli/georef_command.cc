@@ -1,6 +1,9 @@
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <vector>
+
+#include <spdlog/spdlog.h>
 
 #include "cli_common.h"
 #include "epiloc/cli/commands.h"
@@ -89,6 +92,20 @@ int RunGeoref(int argc, char** argv) {
     for (const FrameRecord& f : drive.frames) {
       frames.push_back({f.frame, f.timestamp_s});
       import.frame_times.push_back(f.timestamp_s);
+      import.frame_numbers.push_back(f.frame);
+    }
+  } else if (import.format != TrajectoryFileFormat::kKitti) {
+    // One row per VO pose; `epiloc vo` names its drive, whose frame numbers the rows then carry.
+    const std::string named = TrajectoryDriveDir(vo_path);
+    if (!named.empty() && std::filesystem::is_directory(named)) {
+      const Drive drive = LoadDrive(named);
+      for (const FrameRecord& f : drive.frames) {
+        import.frame_times.push_back(f.timestamp_s);
+        import.frame_numbers.push_back(f.frame);
+      }
+    } else if (!named.empty()) {
+      spdlog::warn("{}: its drive {} is not there: rows without frame numbers (give --drive)",
+                   vo_path, named);
     }
   }
   const ImportedTrajectory trajectory = ImportTrajectory(vo_path, import);

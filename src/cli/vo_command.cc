@@ -18,10 +18,13 @@ int RunVo(int argc, char** argv) {
       "vo");
   CommonFlags flags;
   AddCommonFlags(app, flags);
-  std::string drive_dir, out_path;
+  std::string drive_dir, out_path, points_path;
   VoOptions options;
   app.add_option("--drive", drive_dir, "Drive directory")->required();
   app.add_option("--out", out_path, "TUM trajectory to write")->required();
+  app.add_option("--points", points_path,
+                 "CSV of the map's 3-D points (default: --out with the extension .points.csv; "
+                 "'none' = not written), for `epiloc anchor --method structure`");
   app.add_option("--max-features", options.klt.max_features, "Tracked features per frame")
       ->capture_default_str();
   app.add_option("--init-min-flow-px", options.init_min_flow_px,
@@ -45,12 +48,18 @@ int RunVo(int argc, char** argv) {
       ->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
 
+  options.keep_points = points_path != "none";
   options.Check();
   const Drive drive = LoadDrive(drive_dir);
   Progress progress("vo", static_cast<int64_t>(drive.frames.size()));
   const VoResult result = RunVisualOdometry(drive, options, progress.Callback());
   progress.Finish();
-  WriteVoTrajectory(result, out_path, drive.name);
+  WriteVoTrajectory(result, out_path, drive.name, drive.dir);
+  if (options.keep_points) {
+    if (points_path.empty()) points_path = VoPointsPath(out_path);
+    WriteVoPoints(result.points, points_path);
+    std::printf("%s: %zu map points\n", points_path.c_str(), result.points.size());
+  }
   const VoSummary& s = result.summary;
   std::printf(
       "%s: %lld of %lld frames posed, %lld keyframes, %zu segment(s), %lld tracking loss(es), "

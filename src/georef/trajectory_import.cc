@@ -47,6 +47,9 @@ void TrajectoryImportOptions::Check() const {
   EPILOC_CHECK(std::isfinite(time_offset_s), "--time-offset-s must be finite");
   EPILOC_CHECK(!relative_times || !frame_times.empty(),
                "--relative-times needs the drive's frame times (--drive)");
+  EPILOC_CHECK(frame_numbers.empty() || frame_numbers.size() == frame_times.size(),
+               "trajectory import: {} frame numbers for {} frame times", frame_numbers.size(),
+               frame_times.size());
   EPILOC_CHECK(!relative_times || time_offset_s == 0.0,
                "give either --relative-times or --time-offset-s, not both");
 }
@@ -103,7 +106,29 @@ ImportedTrajectory ImportTrajectory(const std::string& path,
             FormatDouble(pose.timestamp_s));
     }
   }
+  if (!options.frame_numbers.empty()) {
+    for (StampedPose& pose : trajectory.poses) {
+      const auto after = std::lower_bound(options.frame_times.begin(), options.frame_times.end(),
+                                          pose.timestamp_s - kSameTime_s);
+      pose.frame = after != options.frame_times.end() &&
+                           std::abs(*after - pose.timestamp_s) <= kSameTime_s
+                       ? options.frame_numbers[after - options.frame_times.begin()]
+                       : kInvalidFrame;
+    }
+  }
   return trajectory;
+}
+
+std::string TrajectoryDriveDir(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) Throw("{}: cannot open trajectory file", path);
+  const std::string key = "# drive_dir ";
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(key, 0) == 0) return Trim(line.substr(key.size()));
+    if (!line.empty() && line[0] != '#') break;  // comments come first
+  }
+  return "";
 }
 
 std::optional<Rigid3d> InterpolatePose(const std::vector<StampedPose>& poses,

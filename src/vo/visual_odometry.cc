@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <tuple>
 #include <unordered_map>
 
 #include <spdlog/spdlog.h>
@@ -85,7 +86,7 @@ class VisualOdometry::Impl {
     m.max_error_px = options_.max_error_px;
     m.min_parallax_deg = options_.min_triangulation_parallax_deg;
     m.ba_window = options_.ba_window;
-    m.keep_history = options_.global_ba_iterations > 0;
+    m.keep_history = options_.global_ba_iterations > 0 || options_.keep_points;
     m.bundle = BundleOptions();
     m.bundle.focal_px = 0.5 * (camera_.fx + camera_.fy);
     m.bundle.huber_px = options_.huber_px;
@@ -494,6 +495,29 @@ VoResult VisualOdometry::Impl::Result() const {
     segment.last_frame = pose.frame;
     ++segment.num_poses;
     segment.num_keyframes += pose.keyframe ? 1 : 0;
+  }
+  if (options_.keep_points) {
+    for (const MapTrack* track : map_.PointTracks()) {
+      const Keyframe& first = map_.keyframe(track->observations.front().first);
+      VoPoint point;
+      point.point_in_world = track->point_in_world;
+      point.segment = first.segment;
+      point.first_frame = first.frame;
+      point.last_frame = map_.keyframe(track->observations.back().first).frame;
+      point.observations = static_cast<int>(track->observations.size());
+      const Eigen::Vector3d ray_first =
+          track->point_in_world - Centre(first.cam_from_world);
+      const Eigen::Vector3d ray_last =
+          track->point_in_world -
+          Centre(map_.keyframe(track->observations.back().first).cam_from_world);
+      point.parallax_deg = std::atan2(ray_first.cross(ray_last).norm(), ray_first.dot(ray_last)) *
+                           180.0 / M_PI;
+      result.points.push_back(point);
+    }
+    std::sort(result.points.begin(), result.points.end(), [](const VoPoint& a, const VoPoint& b) {
+      return std::tie(a.first_frame, a.last_frame, a.point_in_world.x()) <
+             std::tie(b.first_frame, b.last_frame, b.point_in_world.x());
+    });
   }
   result.summary.posed = static_cast<int64_t>(result.poses.size());
   result.summary.mean_inliers =

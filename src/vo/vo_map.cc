@@ -260,6 +260,17 @@ void VoMap::TransformSegment(keyframe_t first, double scale, const Rigid3d& simi
   }
 }
 
+std::vector<const MapTrack*> VoMap::PointTracks() const {
+  std::vector<const MapTrack*> out;
+  for (const auto& [id, track] : tracks_) {
+    if (track.has_point && !track.observations.empty()) out.push_back(&track);
+  }
+  for (const MapTrack& track : kept_tracks_) {
+    if (track.has_point && !track.observations.empty()) out.push_back(&track);
+  }
+  return out;
+}
+
 void VoMap::Keep(MapTrack&& track) {
   if (options_.keep_history && track.has_point && track.observations.size() >= 2) {
     kept_tracks_.push_back(std::move(track));

@@ -91,6 +91,9 @@ class VoMap {
   // Applies x' = scale * R * x + t to the points and keyframes (>= first) of a segment.
   void TransformSegment(keyframe_t first, double scale, const Rigid3d& similarity_rigid);
 
+  // Every track with a 3-D point (current and kept ones), in no particular order.
+  std::vector<const MapTrack*> PointTracks() const;
+
   // Forgets tracks (all of them: a new segment starts); kept ones stay for GlobalBundle.
   void ClearTracks();
   // Drops observations of keyframes far behind `newest` and tracks no longer needed (not alive

@@ -76,6 +76,27 @@ TEST(TrajectoryImport, TumTimesOnTheDriveClock) {
   EXPECT_DOUBLE_EQ(ImportTrajectory(dir / "rel.tum", options).poses[1].timestamp_s, 500.1);
 }
 
+// TUM poses carry the drive's frame numbers when its frames are given (issue 17: georef rows
+// had none), and the drive an `epiloc vo` file names is found.
+TEST(TrajectoryImport, TumPosesTakeFrameNumbers) {
+  TempDir dir;
+  WriteText(dir / "vo.tum", std::string("# epiloc vo\n# drive_dir /data/drives/cam1\n") + kTum);
+  EXPECT_EQ(TrajectoryDriveDir(dir / "vo.tum"), "/data/drives/cam1");
+  WriteText(dir / "plain.tum", kTum);
+  EXPECT_EQ(TrajectoryDriveDir(dir / "plain.tum"), "");
+  TrajectoryImportOptions options;
+  options.frame_times = {1317379999.9, 1317380000.0, 1317380000.1004, 1317380000.3};
+  options.frame_numbers = {10, 11, 12, 13};
+  const ImportedTrajectory t = ImportTrajectory(dir / "vo.tum", options);
+  ASSERT_EQ(t.poses.size(), 3u);
+  EXPECT_EQ(t.poses[0].frame, 11);
+  EXPECT_EQ(t.poses[1].frame, 12);           // 0.4 ms apart: the same frame
+  EXPECT_EQ(t.poses[2].frame, kInvalidFrame);  // no frame at that time
+  options.frame_numbers.pop_back();
+  ExpectError([&] { ImportTrajectory(dir / "vo.tum", options); },
+              {"3 frame numbers for 4 frame times"});
+}
+
 TEST(TrajectoryImport, ReadsKittiWithEachSourceOfTimes) {
   TempDir dir;
   WriteText(dir / "poses.txt", kKitti);

@@ -27,6 +27,7 @@
 // CSV (eval/result.h).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -136,6 +137,15 @@ struct AnchorResult {
   double prior_offset_m = 0.0;            // horizontal distance pose - prior, metres
   double height_above_ground_m = NAN;     // camera height above the map's ground at the pose
   double seconds = 0.0;                   // wall-clock time of the frame
+  // Anchoring from structure (structure_anchor.h) only; NaN / 0 otherwise.
+  double scale_m_per_unit = NAN;          // the similarity's scale (metres per VO unit)
+  double seed_scale_m_per_unit = NAN;     // the GPS seed's
+  double inlier_share = NAN;              // share of the structure points within the finest
+                                          // correspondence distance (num_inliers of them)
+  double residual_m = NAN;                // their RMS distance to the map's surface
+  double along_information = NAN;         // mean (normal . road direction)^2 of the inliers
+  double along_sigma_m = NAN;             // translation sigma along the road from the Hessian
+  int structure_points = 0;               // VO points registered
 };
 
 // Anchors one frame. `image`: the frame undistorted into `camera` (grey or BGR); `local_map`: the
@@ -161,6 +171,7 @@ struct AnchorInputs {
   std::vector<frame_t> frames;  // frame numbers to anchor; empty = every `every`-th frame
   int every = 1;                // with frames empty: every n-th frame of the drive
   std::string photos_dir;   // drive of the map's photographs (map_photos.h; "" = none)
+  std::string vo_path;      // structure anchoring: the VO trajectory (structure_anchor.h)
   MapPhotoOptions photos;
   std::string tile_dir;     // cache of tiles for a large single-file map ("" = <cloud>.tiles)
   int64_t max_whole_points = 20000000;  // larger single-file maps are tiled (bounded memory)

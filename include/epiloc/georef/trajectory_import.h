@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "epiloc/core/types.h"
 #include "epiloc/io/pose_files.h"
 
 namespace epiloc {
@@ -33,6 +34,9 @@ struct TrajectoryImportOptions {
   double time_offset_s = 0.0;                                 // added to every timestamp
   bool relative_times = false;      // add the first frame time of `frame_times` instead
   std::vector<double> frame_times;  // the drive's frame times, in order (optional)
+  // The drive's frame numbers, one per frame time (optional): a pose within 1 ms of a frame time
+  // takes that frame's number (TUM files have none; KITTI line indices are replaced).
+  std::vector<frame_t> frame_numbers;
 
   // Throws Error naming the invalid field.
   void Check() const;
@@ -44,6 +48,10 @@ struct ImportedTrajectory {
   TrajectoryFileFormat format = TrajectoryFileFormat::kTum;
   std::vector<StampedPose> poses;
 };
+
+// The drive directory a trajectory names in a "# drive_dir <path>" comment (`epiloc vo` writes
+// one), "" when it names none. Throws Error when the file cannot be opened.
+std::string TrajectoryDriveDir(const std::string& path);
 
 // Reads and re-times a trajectory. Throws Error "<path>:<line>: ..." for malformed lines (see
 // io/pose_files.h), "<path>: ..." for an empty file, relative_times without frame times, or KITTI

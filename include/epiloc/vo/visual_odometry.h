@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
 
 #include "epiloc/camera/camera.h"
@@ -66,6 +67,9 @@ struct VoOptions {
   // (then the map forgets what lies behind the local window).
   int global_ba_iterations = 20;
   double huber_px = 2.0;  // robust loss scale of BA and refinement
+  // Keep every triangulated point (also those behind the local window) for Result().points, e.g.
+  // to register the structure to a LiDAR map (anchor/structure_anchor.h).
+  bool keep_points = true;
   int num_threads = 2;    // Ceres threads; frames are read ahead on one more
 
   // Throws Error naming the first invalid field.
@@ -113,8 +117,21 @@ struct VoSummary {
   double frames_per_s() const { return seconds > 0.0 ? frames / seconds : 0.0; }
 };
 
+// A triangulated 3-D point of the odometry's map, in the trajectory's world frame and units
+// (after the final bundle adjustment and the joins of segments).
+struct VoPoint {
+  Eigen::Vector3d point_in_world = Eigen::Vector3d::Zero();
+  int segment = 0;
+  frame_t first_frame = kInvalidFrame;  // first and last keyframe that observed it
+  frame_t last_frame = kInvalidFrame;
+  int observations = 0;                 // keyframes that observed it
+  double parallax_deg = 0.0;            // angle between the rays from the first and the last of
+                                        // them (a small angle: an uncertain depth)
+};
+
 struct VoResult {
   std::vector<VoFramePose> poses;  // posed frames in time order
+  std::vector<VoPoint> points;     // map points (VoOptions::keep_points), by first_frame
   std::vector<VoSegment> segments;
   VoSummary summary;
 };
@@ -154,9 +171,23 @@ VoResult RunVisualOdometry(const Drive& drive,
 
 // Writes the poses as a TUM trajectory (io/pose_files.h): "t x y z qx qy qz qw" of world_from_cam
 // per posed frame, one file for all segments; '#' comment lines name the drive and list each
-// segment ("segment K frames A..B poses N keyframes M join_scale S").
+// segment ("segment K frames A..B poses N keyframes M join_scale S") and, with `drive_dir`, the
+// drive ("drive_dir <absolute path>", which `epiloc georef` maps the times to frame numbers of).
 void WriteVoTrajectory(const VoResult& result,
                        const std::string& path,
-                       const std::string& drive_name = "");
+                       const std::string& drive_name = "",
+                       const std::string& drive_dir = "");
+
+// The points file beside a trajectory file: its extension replaced by ".points.csv"
+// ("vo.tum" -> "vo.points.csv").
+std::string VoPointsPath(const std::string& trajectory_path);
+
+// Writes the map points as CSV: x,y,z (world frame of the trajectory, its units), segment,
+// first_frame, last_frame, observations, parallax_deg. Throws Error on I/O failure.
+void WriteVoPoints(const std::vector<VoPoint>& points, const std::string& path);
+
+// Reads a file WriteVoPoints wrote (parallax_deg optional: NaN without). Throws Error
+// "<path>:<line>: ..." for a malformed row.
+std::vector<VoPoint> ReadVoPoints(const std::string& path);
 
 }  // namespace epiloc

@@ -1,0 +1,109 @@
+// Anchoring from structure (`epiloc anchor --method structure`): absolute 6-DoF camera poses with
+// scale in a LiDAR map without photographs and without appearance matching, by registering the
+// camera's own monocular VO structure (`epiloc vo` points) to the map's geometry with a
+// similarity transform (structure_registration.h; Caselitz et al., IROS 2016).
+//
+// Per anchored frame f (a frame with a VO pose):
+//  1. Window: the VO poses whose GNSS positions lie within +-window_m / 2 along the GNSS track of
+//     f's (time order, same segment), and the VO points of that segment observed by keyframes
+//     inside the window's frame range (with at least min_observations keyframes).
+//  2. Seed (the GPS prior): the VO world is levelled (camera f level); the 2-D similarity that
+//     takes the levelled VO centres of the window onto their GNSS positions (least squares) gives
+//     the heading (the direction of the window's GNSS track) and the scale (GNSS distance over
+//     VO distance); horizontal translation = the mean GNSS offset over the window; height = the
+//     map's ground under f plus the camera height.
+//  3. Points farther than max_point_range_m (seed scale) from every window camera are dropped
+//     (monocular depth grows uncertain with range); robust Sim(3) ICP against the map
+//     (voxel-filtered to map_voxel_m) with its own seed search (structure_registration.h) from
+//     the seed and from `seed_offsets_m` around it (the best fit by inliers, then residual,
+//     wins); optionally refined over a shorter window (refine_window_m).
+//  4. The pose of f: map_from_cam = S * world_from_cam(f) (rotation composed, centre mapped).
+//     Reliable (`ok`) only with an inlier share >= min_inlier_share, RMS residual
+//     <= max_rms_m, scale within max_scale_change of the seed's, conditioning along the road
+//     (along_information >= min_along_information, along_sigma_m <= max_along_sigma_m), within
+//     max_prior_sigmas * gnss_sigma_m of the GNSS, at camera height over the map's ground and
+//     nearly level; else `rejected` with the reason.
+// Frames: map = the cloud's local ENU (metres); VO world = the trajectory's frame (its units).
+// Accuracy (README): on the shared KITTI drive about 0.9 m and 1.4 degrees (median), metres better
+// than a consumer GNSS but far from the photographs' centimetres: the ICP's cost on a sparse map
+// and a monocular structure has minima about a metre apart.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "epiloc/anchor/anchor.h"
+#include "epiloc/anchor/pose_prior.h"
+#include "epiloc/anchor/structure_registration.h"
+#include "epiloc/geo/rigid3.h"
+#include "epiloc/io/pose_files.h"
+#include "epiloc/vo/visual_odometry.h"
+
+namespace epiloc {
+
+struct StructureAnchorOptions {
+  PriorOptions prior;                         // heading from the GNSS track, camera height
+  StructureRegistrationOptions registration;  // the ICP
+  double window_m = 40.0;                     // road length (GNSS) of the keyframe window, metres
+  int min_observations = 3;                   // VO points seen by fewer keyframes are not used
+  double max_point_range_m = 35.0;  // points farther from every window camera are not used
+  int max_points = 4000;            // at most this many points (evenly subsampled)
+  double map_voxel_m = 0.2;         // the map is voxel-filtered to this before the kd-tree (0: no)
+  double map_margin_m = 6.0;        // map points farther from the seeded structure's bounds: cut
+  double max_shared_radius_m = 400.0;  // maps around a run of at most this radius are loaded
+                                       // and filtered once for all frames
+  // Further seeds (along-track, lateral offsets in metres, in the prior camera's level frame)
+  // tried besides the prior itself; the fit with most inliers (then least residual) wins.
+  std::vector<Eigen::Vector2d> seed_offsets_m = {};
+  double refine_window_m = 0.0;  // then refined over this road length about f (0: not;
+                                 // KITTI: no gain at 10-20 m)
+  std::vector<double> refine_distances_m = {0.6, 0.4, 0.25};  // with these distances, no search
+  double min_inlier_share = 0.3;        // reliability: share of points within the finest distance
+  double max_rms_m = 0.15;              // reliability: RMS residual of the inliers, metres
+  double max_scale_change = 0.2;        // reliability: |scale / seed scale - 1|
+  double min_along_information = 0.01;  // reliability: mean (n . road)^2 of the inliers
+  double max_along_sigma_m = 0.05;      // reliability: translation sigma along the road, metres
+  double gnss_sigma_m = 3.0;            // horizontal GNSS standard deviation, metres
+  double max_prior_sigmas = 4.0;        // reliability: offset from the GNSS at most this * sigma
+  double max_height_offset_m = 1.0;     // reliability: |height above ground - camera height|
+  double max_tilt_deg = 15.0;           // reliability: |pitch|, |roll| of the camera at most
+  double heading_error_deg = 0.0;       // testing: perturb the prior heading uniformly in +-this
+  uint64_t seed = 1;                    // seeds the heading perturbation
+  int num_threads = 2;                  // frames anchored in parallel
+
+  // Throws Error naming the first invalid field.
+  void Check() const;
+};
+
+// The VO input of structure anchoring, in the trajectory's world frame.
+struct VoStructure {
+  std::vector<StampedPose> poses;  // world_from_cam, time order (timestamps = drive frame times)
+  std::vector<VoPoint> points;
+  struct Segment {
+    int id = 0;
+    frame_t first = kInvalidFrame;  // first and last posed frame
+    frame_t last = kInvalidFrame;
+  };
+  std::vector<Segment> segments;  // from the trajectory's "# segment" comments (may be empty)
+
+  // Segment of a frame number: the listed segment whose range holds it (0 when none are listed;
+  // -1 for kInvalidFrame or a frame outside every listed range).
+  int SegmentOf(frame_t frame) const;
+  // Reads a TUM trajectory (`epiloc vo`) and its points file (VoPointsPath when
+  // `points_path` is empty). Throws Error naming the file.
+  static VoStructure Read(const std::string& trajectory_path, const std::string& points_path = "");
+  // The same from an odometry run in memory (VoOptions::keep_points).
+  static VoStructure FromResult(const VoResult& result);
+};
+
+// Anchors the selected frames of a drive (inputs.frames / inputs.every; photos_dir unused) by
+// registering `vo`'s structure to the map. Frames without a VO pose are `lost`. Throws Error as
+// AnchorDrive does. `progress` gets (frames done, frames).
+AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
+                                         const VoStructure& vo,
+                                         const StructureAnchorOptions& options,
+                                         const ProgressCallback& progress = nullptr);
+
+}  // namespace epiloc

@@ -1,0 +1,140 @@
+// Registration of a monocular reconstruction's 3-D points to a LiDAR map with a similarity
+// transform (Sim(3): scale, rotation, translation): robust point-to-plane ICP with scale, in the
+// spirit of Caselitz et al., "Monocular camera localization in 3D LiDAR maps" (IROS 2016).
+//
+// Given points p_i (the VO's world frame, its units) and an initial map_from_world similarity
+// S = (s, R, t) (x_in_map = s * R * p + t), each iteration pairs every transformed point with its
+// nearest map point q_i (an exact kd-tree over the map, FLANN) within the current correspondence
+// distance and measures the distance to the map's local surface there, from a PCA of the map
+// points around q_i (computed once per map point used): to its plane where the neighbourhood is
+// planar (facades, road, car bodies), to its line where it is linear (poles, edges, kerbs), else
+// to q_i itself. It minimises sum rho(|P_i (S p_i - q_i)|) (P_i the projector of that distance)
+// over a Sim(3) update by Gauss-Newton with iteratively reweighted least squares (rho = Huber,
+// then Tukey at fine levels; scale proportional to the correspondence distance). The correspondence
+// distance goes from coarse to fine (`max_distances_m`), so a seed metres off converges and the
+// final fit only uses points close to the surface. Levels coarser than `min_scale_distance_m` keep
+// the scale: nearest-neighbour pairs of a shrunken structure are always close, so a free scale at
+// coarse levels collapses the structure. Before the ICP, a search over translations (along and
+// across `direction`, within
+// +-search_along_m / +-search_lateral_m) and headings (+-search_yaw_deg) about the seed scores a
+// subsample of the points by how many fall in occupied cells of the map and starts the ICP from the
+// best (ICP alone converges only within about half the size of the structure's features: a GPS seed
+// 3 m along a street of windows can lock onto the next window). Reliability: the share of points
+// within the finest distance (inliers), their RMS distance to the plane, the scale relative to the
+// seed's, and the conditioning of the problem along a given direction (the road): the information
+// the inliers' normals carry along it, and the standard deviation of the translation along it from
+// the Gauss-Newton Hessian. Frames: map = the cloud's frame (metres); world = the reconstruction's
+// frame (its units).
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "epiloc/cloud/point_cloud.h"
+
+namespace epiloc {
+
+// x_in_b = scale * rotation * x_in_a + translation.
+struct Similarity3 {
+  double scale = 1.0;
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+
+  Eigen::Vector3d operator*(const Eigen::Vector3d& x_in_a) const {
+    return scale * (rotation * x_in_a) + translation;
+  }
+  Similarity3 Inverse() const;
+};
+
+struct StructureRegistrationOptions {
+  // Correspondence distances from coarse to fine, metres (a pair farther apart is ignored).
+  std::vector<double> max_distances_m = {4.0, 2.0, 1.0, 0.5, 0.3};
+  int max_iterations_per_level = 8;  // Gauss-Newton iterations per level at most ...
+  double converged_m = 2e-3;         // ... until no point moves more than this (about)
+  // Levels with a distance at most this use Tukey's loss, coarser ones Huber's. Monocular
+  // structure holds many points off the map's surfaces (above the LiDAR's field of view, far,
+  // moving): Tukey ignores them and ends nearer the truth on KITTI; but a Tukey level cannot
+  // correct a scale error larger than its scale at the structure's ends, so Huber comes first.
+  double tukey_max_distance_m = 0.6;
+  double loss_scale_ratio = 0.3;      // the robust loss's scale = this * the level's distance
+  int normal_neighbours = 12;         // map points in a normal's PCA
+  double normal_radius_m = 0.6;       // of which at most this far from the paired map point
+  double max_planarity = 0.25;        // plane where smallest / middle PCA eigenvalue <= this, else
+  double max_linearity = 0.5;         // line where middle / largest <= this, else point
+  double min_scale_distance_m = 1.2;  // levels with a larger distance hold the scale
+  double search_along_m = 8.0;        // seed search: translations along the direction within +-this
+  double search_lateral_m = 8.0;      // ... across it (horizontally) within +-this
+  double search_step_m = 0.5;         // ... in steps of this (0: no search)
+  double search_yaw_deg = 6.0;        // ... headings within +-this
+  double search_yaw_step_deg = 1.5;   // ... in steps of this
+  int search_points = 400;            // ... scoring this many points (evenly subsampled)
+  double search_truncation_m = 0.5;   // ... by the share of them in map cells of half this side
+  double min_inlier_share = 0.0;      // registration fails below this share (checks: caller)
+  int min_points = 20;                // fewer points: no registration
+
+  // Throws Error naming the first invalid field.
+  void Check() const;
+};
+
+struct StructureRegistration {
+  bool success = false;  // converged with enough points (else `message` says why)
+  std::string message;
+  Similarity3 map_from_world;  // the result (the seed when not successful)
+  int num_points = 0;          // points given
+  int num_inliers = 0;         // within the finest distance at the end
+  double inlier_share = 0.0;   // num_inliers / num_points
+  double rms_m = 0.0;          // RMS point-to-plane (or -point) distance of the inliers
+  int iterations = 0;          // Gauss-Newton iterations over all levels
+  Eigen::Vector3d search_offset_m = Eigen::Vector3d::Zero();  // the seed search's best move
+  double search_yaw_deg = 0.0;                                // and turn
+  // Conditioning along `direction` (RegisterStructure): mean of d^T P_i d over the inliers (the
+  // share of their distances that measure along d: (n . d)^2 for a plane; 0: nothing constrains
+  // d, 1: everything does), and the standard deviation of the translation (at the structure's
+  // centroid) along d, metres, from the final Hessian and residual.
+  double along_information = 0.0;
+  double along_sigma_m = 0.0;
+  double condition = 0.0;  // largest / smallest eigenvalue of the translation block
+};
+
+// The map with a kd-tree over its points and normals computed on demand. Not thread-safe (the
+// normal cache); one per thread.
+class StructureMap {
+ public:
+  // Copies the positions of `cloud` (intensity and colour are not used).
+  explicit StructureMap(const PointCloud& cloud, const StructureRegistrationOptions& options);
+  ~StructureMap();
+  StructureMap(const StructureMap&) = delete;
+  StructureMap& operator=(const StructureMap&) = delete;
+
+  size_t size() const;
+  // Index of the nearest map point within max_distance_m of `x`, or -1.
+  int Nearest(const Eigen::Vector3d& x, double max_distance_m) const;
+  // The same for many points at once (faster).
+  std::vector<int> Nearest(const std::vector<Eigen::Vector3d>& x, double max_distance_m) const;
+  // Whether the map has a point in the cube of side search_truncation_m / 2 (a grid aligned
+  // with the map frame's axes) that holds `x`: the seed search's score.
+  bool Occupied(const Eigen::Vector3d& x) const;
+  const Eigen::Vector3f& Point(int index) const;
+  // Projector of the distance to the map's surface at point `index` (see the top of the file):
+  // n n^T for a plane, I - a a^T for a line along a, I for a point.
+  const Eigen::Matrix3f& Projector(int index);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Registers `points_in_world` to `map` from the seed `initial` (see the top of the file);
+// `direction` (unit, map frame; e.g. the road's) is where the conditioning is reported. Expected
+// failures (too few points or pairs) come back with success = false.
+StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& points_in_world,
+                                        StructureMap& map,
+                                        const Similarity3& initial,
+                                        const Eigen::Vector3d& direction,
+                                        const StructureRegistrationOptions& options);
+
+}  // namespace epiloc

@@ -1,0 +1,527 @@
+#include "epiloc/anchor/structure_anchor.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <mutex>
+#include <random>
+
+#include <spdlog/spdlog.h>
+
+#include "anchor_internal.h"
+#include "epiloc/cloud/tiled_cloud.h"
+#include "epiloc/cloud/voxel.h"
+#include "epiloc/core/error.h"
+#include "epiloc/core/parallel.h"
+
+namespace epiloc {
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+// "# segment K frames A..B ..." comments of an `epiloc vo` trajectory: (segment, first, last).
+struct SegmentRange {
+  int id = 0;
+  frame_t first = kInvalidFrame;
+  frame_t last = kInvalidFrame;
+};
+
+std::vector<SegmentRange> ReadSegmentComments(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<SegmentRange> segments;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] != '#') continue;
+    int id = 0;
+    long long first = 0, last = 0;
+    if (std::sscanf(line.c_str(), "# segment %d frames %lld..%lld", &id, &first, &last) == 3) {
+      segments.push_back({id, static_cast<frame_t>(first), static_cast<frame_t>(last)});
+    }
+  }
+  return segments;
+}
+
+// The VO pose of each drive frame (index into vo.poses, or -1) by time (within 1 ms).
+std::vector<int> PoseOfFrame(const Drive& drive, const VoStructure& vo) {
+  std::vector<int> pose_of(drive.frames.size(), -1);
+  size_t j = 0;
+  for (size_t i = 0; i < drive.frames.size(); ++i) {
+    const double t = drive.frames[i].timestamp_s;
+    while (j < vo.poses.size() && vo.poses[j].timestamp_s < t - 1e-3) ++j;
+    if (j < vo.poses.size() && std::abs(vo.poses[j].timestamp_s - t) <= 1e-3) {
+      pose_of[i] = static_cast<int>(j);
+    }
+  }
+  return pose_of;
+}
+
+struct Fit {
+  StructureRegistration registration;
+  bool valid = false;
+};
+
+bool Better(const StructureRegistration& a, const StructureRegistration& b) {
+  if (a.success != b.success) return a.success;
+  if (a.num_inliers != b.num_inliers) return a.num_inliers > b.num_inliers;
+  return a.rms_m < b.rms_m;
+}
+
+}  // namespace
+
+void StructureAnchorOptions::Check() const {
+  prior.Check();
+  registration.Check();
+  EPILOC_CHECK(std::isfinite(window_m) && window_m > 0, "structure anchor: window_m must be > 0");
+  EPILOC_CHECK(min_observations >= 2, "structure anchor: min_observations must be >= 2");
+  EPILOC_CHECK(max_point_range_m > 0, "structure anchor: max_point_range_m must be > 0");
+  EPILOC_CHECK(max_points >= registration.min_points,
+               "structure anchor: max_points must be >= the registration's min_points");
+  EPILOC_CHECK(map_voxel_m >= 0, "structure anchor: map_voxel_m must be >= 0");
+  EPILOC_CHECK(map_margin_m > 0, "structure anchor: map_margin_m must be > 0");
+  EPILOC_CHECK(min_inlier_share >= 0 && min_inlier_share <= 1,
+               "structure anchor: min_inlier_share must be in [0, 1]");
+  EPILOC_CHECK(max_rms_m > 0, "structure anchor: max_rms_m must be > 0");
+  EPILOC_CHECK(max_scale_change > 0, "structure anchor: max_scale_change must be > 0");
+  EPILOC_CHECK(min_along_information >= 0, "structure anchor: min_along_information must be >= 0");
+  EPILOC_CHECK(max_along_sigma_m > 0, "structure anchor: max_along_sigma_m must be > 0");
+  EPILOC_CHECK(gnss_sigma_m > 0 && max_prior_sigmas > 0,
+               "structure anchor: gnss_sigma_m and max_prior_sigmas must be > 0");
+  EPILOC_CHECK(max_height_offset_m > 0 && max_tilt_deg > 0,
+               "structure anchor: max_height_offset_m and max_tilt_deg must be > 0");
+  EPILOC_CHECK(heading_error_deg >= 0, "structure anchor: heading_error_deg must be >= 0");
+  EPILOC_CHECK(num_threads >= 1, "structure anchor: num_threads must be >= 1");
+}
+
+VoStructure VoStructure::Read(const std::string& trajectory_path, const std::string& points_path) {
+  VoStructure vo;
+  vo.poses = ReadTumPoses(trajectory_path);
+  if (vo.poses.empty()) Throw("{}: the trajectory has no poses", trajectory_path);
+  const std::string points = points_path.empty() ? VoPointsPath(trajectory_path) : points_path;
+  if (!std::filesystem::exists(points)) {
+    Throw("{}: no VO points file (epiloc vo writes it beside the trajectory; or give --vo-points)",
+          points);
+  }
+  vo.points = ReadVoPoints(points);
+  vo.segments.clear();
+  for (const SegmentRange& s : ReadSegmentComments(trajectory_path)) {
+    vo.segments.push_back({s.id, s.first, s.last});
+  }
+  return vo;
+}
+
+VoStructure VoStructure::FromResult(const VoResult& result) {
+  VoStructure vo;
+  for (const VoFramePose& p : result.poses) {
+    StampedPose pose;
+    pose.timestamp_s = p.timestamp_s;
+    pose.frame = p.frame;
+    pose.world_from_cam = p.world_from_cam;
+    vo.poses.push_back(pose);
+  }
+  vo.points = result.points;
+  for (const VoSegment& s : result.segments)
+    vo.segments.push_back({s.id, s.first_frame, s.last_frame});
+  return vo;
+}
+
+int VoStructure::SegmentOf(frame_t frame) const {
+  if (frame == kInvalidFrame) return -1;
+  if (segments.empty()) return 0;
+  for (const Segment& s : segments) {
+    if (frame >= s.first && frame <= s.last) return s.id;
+  }
+  return -1;
+}
+
+namespace {
+
+// Anchors one frame; see the top of structure_anchor.h.
+AnchorResult AnchorOne(const Drive& drive,
+                       size_t index,
+                       const std::vector<int>& pose_of,
+                       const VoStructure& vo,
+                       const std::function<PointCloud(const Eigen::Vector3d&, double)>& load,
+                       const EnuFrame& map_frame,
+                       const StructureAnchorOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  const FrameRecord& record = drive.frames[index];
+  AnchorResult result;
+  result.frame = record.frame;
+  result.timestamp_s = record.timestamp_s;
+  const auto finish = [&](AnchorResult& r) {
+    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return r;
+  };
+  const int k = pose_of[index];
+  if (k < 0) {
+    result.status = AnchorStatus::kLost;
+    result.message = "no VO pose at the frame";
+    return finish(result);
+  }
+  const auto gnss_at = [&](double t) -> std::optional<Eigen::Vector3d> {
+    const auto s = drive.gnss.Interpolate(t, drive.max_gap_s);
+    if (!s) return std::nullopt;
+    return map_frame.ToEnu(s->position);
+  };
+  const auto gnss_k = gnss_at(record.timestamp_s);
+  if (!gnss_k) {
+    result.status = AnchorStatus::kNoPrior;
+    result.message = fmt::format("no GNSS position within {} s", drive.max_gap_s);
+    return finish(result);
+  }
+  const int segment = vo.SegmentOf(record.frame);
+
+  // The window: poses of the segment whose GNSS lies within window_m / 2 of the frame's.
+  const double half = 0.5 * options.window_m;
+  std::vector<int> window;
+  std::vector<Eigen::Vector3d> window_gnss;
+  const auto take = [&](int j) {
+    if (vo.SegmentOf(vo.poses[j].frame) != segment) return false;
+    const auto g = gnss_at(vo.poses[j].timestamp_s);
+    if (!g) return false;
+    if ((*g - *gnss_k).head<2>().norm() > half) return false;
+    window.push_back(j);
+    window_gnss.push_back(*g);
+    return true;
+  };
+  for (int j = k; j >= 0 && take(j); --j) {
+  }
+  std::reverse(window.begin(), window.end());
+  std::reverse(window_gnss.begin(), window_gnss.end());
+  for (int j = k + 1; j < static_cast<int>(vo.poses.size()) && take(j); ++j) {
+  }
+  Eigen::Vector2d gnss_mean = Eigen::Vector2d::Zero();
+  for (size_t i = 0; i < window.size(); ++i) {
+    gnss_mean += window_gnss[i].head<2>();
+  }
+  gnss_mean /= std::max<size_t>(1, window.size());
+  double gnss_spread = 0.0;
+  for (size_t i = 0; i < window.size(); ++i) {
+    gnss_spread += (window_gnss[i].head<2>() - gnss_mean).squaredNorm();
+  }
+  if (window.size() < 3 || gnss_spread < 1.0) {
+    result.status = AnchorStatus::kNoPrior;
+    result.message = "the window does not move (no scale from the GNSS)";
+    return finish(result);
+  }
+
+  // The seed: the VO world levelled so that camera k is level and looks north, then the 2-D
+  // similarity (turn, scale, shift) that takes the levelled VO centres onto the window's GNSS
+  // positions by least squares: the heading comes from the whole window's track, which a slowly
+  // varying GNSS error does not turn.
+  const Rigid3d& world_from_cam = vo.poses[k].world_from_cam;
+  const Eigen::Matrix3d level =
+      MapFromCamRotation(0.0) * world_from_cam.rotation.conjugate().toRotationMatrix();
+  std::vector<Eigen::Vector2d> levelled(window.size());
+  Eigen::Vector2d levelled_mean = Eigen::Vector2d::Zero();
+  for (size_t i = 0; i < window.size(); ++i) {
+    levelled[i] = (level * vo.poses[window[i]].world_from_cam.translation).head<2>();
+    levelled_mean += levelled[i];
+  }
+  levelled_mean /= static_cast<double>(window.size());
+  std::complex<double> cross(0.0, 0.0);
+  double levelled_spread = 0.0;
+  for (size_t i = 0; i < window.size(); ++i) {
+    const Eigen::Vector2d a = levelled[i] - levelled_mean;
+    const Eigen::Vector2d b = window_gnss[i].head<2>() - gnss_mean;
+    cross += std::conj(std::complex<double>(a.x(), a.y())) * std::complex<double>(b.x(), b.y());
+    levelled_spread += a.squaredNorm();
+  }
+  if (levelled_spread <= 0.0 || std::abs(cross) <= 0.0) {
+    result.status = AnchorStatus::kNoPrior;
+    result.message = "the window does not move horizontally";
+    return finish(result);
+  }
+  // A counter-clockwise turn by theta is a compass heading of -theta.
+  double heading = -std::arg(cross) / kDegToRad;
+  if (options.heading_error_deg > 0) {
+    std::mt19937_64 rng(options.seed * 7919ULL + static_cast<uint64_t>(record.frame));
+    heading += std::uniform_real_distribution<double>(-options.heading_error_deg,
+                                                      options.heading_error_deg)(rng);
+  }
+  Similarity3 seed;
+  seed.scale = std::abs(cross) / levelled_spread;
+  seed.rotation = Eigen::Quaterniond(MapFromCamRotation(heading) *
+                                     world_from_cam.rotation.conjugate().toRotationMatrix())
+                      .normalized();
+  Eigen::Vector2d offset = Eigen::Vector2d::Zero();
+  for (size_t i = 0; i < window.size(); ++i) {
+    offset +=
+        window_gnss[i].head<2>() -
+        (seed.scale * (seed.rotation * vo.poses[window[i]].world_from_cam.translation)).head<2>();
+  }
+  offset /= static_cast<double>(window.size());
+  const double load_radius = half + options.max_point_range_m + options.map_margin_m;
+  const PointCloud local = load(*gnss_k, load_radius);
+  const auto ground = GroundHeight(local, gnss_k->head<2>(), options.prior);
+  const double camera_z = ground ? *ground + options.prior.camera_height_m : gnss_k->z();
+  const Eigen::Vector3d seeded_centre = seed.scale * (seed.rotation * world_from_cam.translation);
+  seed.translation = Eigen::Vector3d(offset.x(), offset.y(), camera_z - seeded_centre.z());
+  result.has_prior = true;
+  result.prior.frame = record.frame;
+  result.prior.timestamp_s = record.timestamp_s;
+  result.prior.heading_deg = heading;
+  result.prior.position_in_map = seed * world_from_cam.translation;
+  result.prior.has_ground = ground.has_value();
+  result.prior.ground_z_m = ground.value_or(0.0);
+  result.prior.map_from_cam =
+      Rigid3d::FromMatrix(MapFromCamRotation(heading), result.prior.position_in_map);
+  result.seed_scale_m_per_unit = seed.scale;
+
+  // The structure: points of the segment seen inside a window, near its cameras.
+  const auto select_points = [&](const std::vector<int>& poses, double max_range_vo) {
+    const frame_t frame_lo = vo.poses[poses.front()].frame;
+    const frame_t frame_hi = vo.poses[poses.back()].frame;
+    std::vector<Eigen::Vector3d> selected;
+    for (const VoPoint& p : vo.points) {
+      if (p.segment != segment || p.observations < options.min_observations) continue;
+      if (p.last_frame < frame_lo || p.first_frame > frame_hi) continue;
+      for (const int j : poses) {
+        if ((p.point_in_world - vo.poses[j].world_from_cam.translation).norm() <= max_range_vo) {
+          selected.push_back(p.point_in_world);
+          break;
+        }
+      }
+    }
+    if (static_cast<int>(selected.size()) > options.max_points) {
+      std::vector<Eigen::Vector3d> kept;
+      const double step = static_cast<double>(selected.size()) / options.max_points;
+      for (int i = 0; i < options.max_points; ++i) {
+        kept.push_back(selected[static_cast<size_t>(i * step)]);
+      }
+      selected.swap(kept);
+    }
+    return selected;
+  };
+  const std::vector<Eigen::Vector3d> points =
+      select_points(window, options.max_point_range_m / seed.scale);
+  result.structure_points = static_cast<int>(points.size());
+  if (static_cast<int>(points.size()) < options.registration.min_points) {
+    result.status = AnchorStatus::kLost;
+    result.message = fmt::format("{} VO points in the window, need {}", points.size(),
+                                 options.registration.min_points);
+    return finish(result);
+  }
+
+  // The map around the seeded structure.
+  Bounds3f bounds;
+  for (const Eigen::Vector3d& p : points) bounds.Extend((seed * p).cast<float>());
+  const float margin = static_cast<float>(options.map_margin_m);
+  PointCloud cropped;
+  for (const Eigen::Vector3f& q : local.positions) {
+    if ((q.array() >= bounds.min.array() - margin).all() &&
+        (q.array() <= bounds.max.array() + margin).all()) {
+      cropped.positions.push_back(q);
+    }
+  }
+  if (cropped.size() < 100) {
+    result.status = AnchorStatus::kNoCoverage;
+    result.message = fmt::format("{} map points around the structure", cropped.size());
+    return finish(result);
+  }
+  StructureMap structure_map(cropped, options.registration);
+  const double h = heading * kDegToRad;
+  const Eigen::Vector3d along(std::sin(h), std::cos(h), 0.0);
+  const Eigen::Vector3d right(std::cos(h), -std::sin(h), 0.0);
+  StructureRegistration best;
+  bool have = false;
+  std::vector<Eigen::Vector2d> offsets = {Eigen::Vector2d::Zero()};
+  offsets.insert(offsets.end(), options.seed_offsets_m.begin(), options.seed_offsets_m.end());
+  for (const Eigen::Vector2d& o : offsets) {
+    Similarity3 start_sim = seed;
+    start_sim.translation += o.x() * along + o.y() * right;
+    const StructureRegistration fit =
+        RegisterStructure(points, structure_map, start_sim, along, options.registration);
+    if (!have || Better(fit, best)) {
+      best = fit;
+      have = true;
+    }
+  }
+  // Refinement over a shorter window about the frame: less of the VO's scale drift.
+  if (best.success && options.refine_window_m > 0.0) {
+    const double refine_half_vo = 0.5 * options.refine_window_m / best.map_from_world.scale;
+    std::vector<int> near;
+    for (const int j : window) {
+      if ((vo.poses[j].world_from_cam.translation - world_from_cam.translation).norm() <=
+          refine_half_vo) {
+        near.push_back(j);
+      }
+    }
+    const std::vector<Eigen::Vector3d> refine_points =
+        select_points(near, options.max_point_range_m / best.map_from_world.scale);
+    StructureRegistrationOptions refine = options.registration;
+    refine.search_step_m = 0.0;
+    refine.max_distances_m = options.refine_distances_m;
+    const StructureRegistration refined =
+        RegisterStructure(refine_points, structure_map, best.map_from_world, along, refine);
+    if (refined.success) {
+      best = refined;
+      result.structure_points = static_cast<int>(refine_points.size());
+    }
+  }
+  spdlog::debug(
+      "structure anchor frame {}: {} points, seed search moved {:.2f} {:.2f} m, turned {:.1f} "
+      "deg; {} iterations, share {:.2f}, residual {:.3f} m, scale {:.4f} (seed {:.4f})",
+      record.frame, points.size(), best.search_offset_m.x(), best.search_offset_m.y(),
+      best.search_yaw_deg, best.iterations, best.inlier_share, best.rms_m,
+      best.map_from_world.scale, seed.scale);
+  result.num_inliers = best.num_inliers;
+  result.inlier_share = best.inlier_share;
+  result.residual_m = best.rms_m;
+  result.along_information = best.along_information;
+  result.along_sigma_m = best.along_sigma_m;
+  result.rounds = best.iterations;
+  result.rmse_px = NAN;
+  if (!best.success) {
+    result.status = AnchorStatus::kLost;
+    result.message = best.message;
+    return finish(result);
+  }
+  const Similarity3& sim = best.map_from_world;
+  result.scale_m_per_unit = sim.scale;
+  result.has_pose = true;
+  result.map_from_cam =
+      Rigid3d(sim.rotation * world_from_cam.rotation, sim * world_from_cam.translation);
+  const Eigen::Vector3d centre = result.map_from_cam.translation;
+  result.position = map_frame.ToGeodetic(centre);
+  result.enu_from_cam = Eigen::Quaterniond(map_frame.EnuFromLocalEnu(result.position).transpose() *
+                                           result.map_from_cam.rotation.toRotationMatrix())
+                            .normalized();
+  result.prior_offset_m = (centre - *gnss_k).head<2>().norm();
+  if (const auto g = GroundHeight(local, centre.head<2>(), options.prior)) {
+    result.height_above_ground_m = centre.z() - *g;
+  }
+
+  // Reliability.
+  std::string& why = result.message;
+  const auto [pitch, roll] =
+      anchor_internal::PitchRollDeg(result.map_from_cam.rotation.toRotationMatrix());
+  const double scale_change = sim.scale / seed.scale - 1.0;
+  if (best.inlier_share < options.min_inlier_share) {
+    why = fmt::format("inlier share {:.2f} below {:.2f}", best.inlier_share,
+                      options.min_inlier_share);
+  } else if (best.rms_m > options.max_rms_m) {
+    why = fmt::format("residual {:.3f} m above {:.3f} m", best.rms_m, options.max_rms_m);
+  } else if (std::abs(scale_change) > options.max_scale_change) {
+    why = fmt::format("scale {:+.0f} % from the GNSS's, more than {:.0f} %", 100 * scale_change,
+                      100 * options.max_scale_change);
+  } else if (best.along_information < options.min_along_information ||
+             best.along_sigma_m > options.max_along_sigma_m) {
+    why = fmt::format("weak along the road (information {:.3f}, sigma {:.3f} m)",
+                      best.along_information, best.along_sigma_m);
+  } else if (result.prior_offset_m > options.max_prior_sigmas * options.gnss_sigma_m) {
+    why = fmt::format("{:.1f} m from the GNSS prior, more than {:.0f} sigma", result.prior_offset_m,
+                      options.max_prior_sigmas);
+  } else if (std::isfinite(result.height_above_ground_m) &&
+             std::abs(result.height_above_ground_m - options.prior.camera_height_m) >
+                 options.max_height_offset_m) {
+    why = fmt::format("camera {:.2f} m above the map's ground, expected {:.2f} +- {:.2f} m",
+                      result.height_above_ground_m, options.prior.camera_height_m,
+                      options.max_height_offset_m);
+  } else if (std::abs(pitch) > options.max_tilt_deg || std::abs(roll) > options.max_tilt_deg) {
+    why = fmt::format("camera tilted (pitch {:.1f}, roll {:.1f} deg)", pitch, roll);
+  }
+  result.status = why.empty() ? AnchorStatus::kOk : AnchorStatus::kRejected;
+  return finish(result);
+}
+
+}  // namespace
+
+AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
+                                         const VoStructure& vo,
+                                         const StructureAnchorOptions& options,
+                                         const ProgressCallback& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  inputs.Check();
+  options.Check();
+  const Drive drive = LoadDrive(inputs.drive_dir);
+  if (drive.gnss.samples.empty()) {
+    Throw("{}: the drive has no GNSS positions to anchor from", inputs.drive_dir);
+  }
+  const std::vector<size_t> indices = anchor_internal::SelectFrames(inputs, drive);
+  const std::vector<int> pose_of = PoseOfFrame(drive, vo);
+  if (std::none_of(pose_of.begin(), pose_of.end(), [](int k) { return k >= 0; })) {
+    Throw("{}: no VO pose falls on a frame time of drive {} (another drive?)", inputs.vo_path,
+          inputs.drive_dir);
+  }
+  VoStructure timed = vo;
+  for (size_t i = 0; i < pose_of.size(); ++i) {
+    if (pose_of[i] >= 0) timed.poses[static_cast<size_t>(pose_of[i])].frame = drive.frames[i].frame;
+  }
+  const std::unique_ptr<TiledCloud> map =
+      anchor_internal::OpenMap(inputs.cloud_path, inputs.tile_dir, inputs.max_whole_points);
+  const EnuFrame map_frame(inputs.map_origin);
+  anchor_internal::CheckMapNearDrive(inputs.cloud_path, *map, map_frame, drive,
+                                     inputs.max_map_distance_m);
+  AnchorDriveResult out;
+  out.drive_name = drive.name;
+  out.frames.resize(indices.size());
+  std::mutex progress_mutex;
+  int64_t done = 0;
+  // The map around the whole run, voxel-filtered once, when that is not too large; else each
+  // frame loads (and filters) its own neighbourhood.
+  const double load_radius =
+      0.5 * options.window_m + options.max_point_range_m + options.map_margin_m;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> positions;
+  for (const size_t i : indices) {
+    if (const auto g = drive.gnss.Interpolate(drive.frames[i].timestamp_s, drive.max_gap_s)) {
+      positions.push_back(map_frame.ToEnu(g->position));
+      centre += positions.back();
+    }
+  }
+  double run_radius = INFINITY;
+  if (!positions.empty()) {
+    centre /= static_cast<double>(positions.size());
+    run_radius = 0.0;
+    for (const Eigen::Vector3d& p : positions) {
+      run_radius = std::max(run_radius, (p - centre).head<2>().norm());
+    }
+  }
+  PointCloud shared;
+  const bool share = run_radius + load_radius <= options.max_shared_radius_m;
+  if (share) {
+    shared = map->Load(centre, run_radius + load_radius);
+    shared.intensity.clear();
+    shared.rgb.clear();
+    if (options.map_voxel_m > 0) shared = VoxelFilter(shared, options.map_voxel_m);
+  }
+  std::mutex load_mutex;
+  const auto load = [&](const Eigen::Vector3d& at, double radius) {
+    if (share) {
+      PointCloud near;
+      const float r2 = static_cast<float>(radius * radius);
+      for (const Eigen::Vector3f& p : shared.positions) {
+        if ((p.head<2>() - at.head<2>().cast<float>()).squaredNorm() <= r2) {
+          near.positions.push_back(p);
+        }
+      }
+      return near;
+    }
+    PointCloud near;
+    {
+      std::lock_guard<std::mutex> lock(load_mutex);
+      near = map->Load(at, radius);
+    }
+    near.intensity.clear();
+    near.rgb.clear();
+    return options.map_voxel_m > 0 ? VoxelFilter(near, options.map_voxel_m) : near;
+  };
+  ParallelFor(static_cast<int64_t>(indices.size()), options.num_threads, [&](int64_t k) {
+    out.frames[static_cast<size_t>(k)] =
+        AnchorOne(drive, indices[static_cast<size_t>(k)], pose_of, timed, load, map_frame, options);
+    std::lock_guard<std::mutex> lock(progress_mutex);
+    ++done;
+    if (progress) progress(done, static_cast<int64_t>(indices.size()));
+  });
+  for (const AnchorResult& r : out.frames) out.num_ok += r.status == AnchorStatus::kOk ? 1 : 0;
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace epiloc

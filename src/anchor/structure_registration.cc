@@ -1,0 +1,428 @@
+#include "epiloc/anchor/structure_registration.h"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_set>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <flann/flann.hpp>
+
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+namespace {
+
+Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+enum class RobustLoss { kHuber, kTukey };
+
+double RobustWeight(double residual, double scale, RobustLoss loss) {
+  const double a = std::abs(residual);
+  if (loss == RobustLoss::kHuber) return a <= scale ? 1.0 : scale / a;
+  if (a >= scale) return 0.0;
+  const double u = 1.0 - (a / scale) * (a / scale);
+  return u * u;
+}
+
+// One paired point: its transformed position, the map point, the projector of the distance.
+struct Pair {
+  Eigen::Vector3d y;
+  Eigen::Vector3d q;
+  Eigen::Matrix3d p;
+};
+
+std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& points,
+                            const Similarity3& sim,
+                            StructureMap& map,
+                            double max_distance_m) {
+  std::vector<Eigen::Vector3d> transformed(points.size());
+  for (size_t i = 0; i < points.size(); ++i) transformed[i] = sim * points[i];
+  const std::vector<int> nearest = map.Nearest(transformed, max_distance_m);
+  std::vector<Pair> pairs;
+  pairs.reserve(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (nearest[i] < 0) continue;
+    pairs.push_back({transformed[i], map.Point(nearest[i]).cast<double>(),
+                     map.Projector(nearest[i]).cast<double>()});
+  }
+  return pairs;
+}
+
+double PairResidual(const Pair& pair) { return (pair.p * (pair.y - pair.q)).norm(); }
+
+// Gauss-Newton normal equations in (omega, delta, sigma) about `centre`: y' = exp(sigma) *
+// Exp(omega) * (y - centre) + centre + delta. Without `with_scale`, sigma is held at 0.
+void Accumulate(const std::vector<Pair>& pairs,
+                const Eigen::Vector3d& centre,
+                double loss_scale,
+                RobustLoss loss,
+                bool with_scale,
+                Eigen::Matrix<double, 7, 7>* h,
+                Eigen::Matrix<double, 7, 1>* g) {
+  h->setZero();
+  g->setZero();
+  for (const Pair& pair : pairs) {
+    const Eigen::Vector3d d = pair.y - centre;
+    const Eigen::Vector3d r = pair.p * (pair.y - pair.q);
+    Eigen::Matrix<double, 3, 7> j;
+    j << -Skew(d), Eigen::Matrix3d::Identity(), d;
+    const double w = RobustWeight(r.norm(), loss_scale, loss);
+    // P is a symmetric projector: J^T P^T P J = J^T P J.
+    *h += w * j.transpose() * pair.p * j;
+    *g += w * j.transpose() * r;
+  }
+  if (!with_scale) {
+    h->row(6).setZero();
+    h->col(6).setZero();
+    (*h)(6, 6) = 1.0;
+    (*g)(6) = 0.0;
+  }
+}
+
+Eigen::Vector3d Centroid(const std::vector<Pair>& pairs) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const Pair& p : pairs) c += p.y;
+  return pairs.empty() ? c : Eigen::Vector3d(c / static_cast<double>(pairs.size()));
+}
+
+// The seed search (see the header): the best of a grid of turns about the structure's centroid
+// and horizontal moves, by the truncated squared distance of a subsample to the map.
+Similarity3 SearchSeed(const std::vector<Eigen::Vector3d>& points,
+                       const StructureMap& map,
+                       const Similarity3& seed,
+                       const Eigen::Vector3d& direction,
+                       const StructureRegistrationOptions& options,
+                       Eigen::Vector3d* best_offset,
+                       double* best_yaw_deg) {
+  std::vector<Eigen::Vector3d> sample;
+  const size_t step = std::max<size_t>(1, points.size() / options.search_points);
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < points.size(); i += step) {
+    sample.push_back(seed * points[i]);
+    centre += sample.back();
+  }
+  centre /= static_cast<double>(sample.size());
+  Eigen::Vector3d along(direction.x(), direction.y(), 0.0);
+  along = along.norm() > 0 ? along.normalized() : Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d across = Eigen::Vector3d::UnitZ().cross(along);
+  const int na = static_cast<int>(std::floor(options.search_along_m / options.search_step_m));
+  const int nl = static_cast<int>(std::floor(options.search_lateral_m / options.search_step_m));
+  const int ny = static_cast<int>(std::floor(options.search_yaw_deg / options.search_yaw_step_deg));
+  int best = -1;
+  int best_move = 0;
+  *best_offset = Eigen::Vector3d::Zero();
+  *best_yaw_deg = 0.0;
+  std::vector<Eigen::Vector3d> turned(sample.size());
+  for (int iy = -ny; iy <= ny; ++iy) {
+    const double yaw_deg = iy * options.search_yaw_step_deg;
+    const Eigen::Matrix3d r =
+        Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    for (size_t i = 0; i < sample.size(); ++i) turned[i] = r * (sample[i] - centre) + centre;
+    for (int ia = -na; ia <= na; ++ia) {
+      for (int il = -nl; il <= nl; ++il) {
+        const Eigen::Vector3d offset = (ia * along + il * across) * options.search_step_m;
+        int hits = 0;
+        for (const Eigen::Vector3d& y : turned) hits += map.Occupied(y + offset) ? 1 : 0;
+        // Ties (a flat score) keep the smallest change.
+        const int move = std::abs(ia) + std::abs(il) + std::abs(iy);
+        if (hits > best || (hits == best && move < best_move)) {
+          best = hits;
+          best_move = move;
+          *best_offset = offset;
+          *best_yaw_deg = yaw_deg;
+        }
+      }
+    }
+  }
+  // The turn about the centroid, then the move, composed onto the seed.
+  const Eigen::Quaterniond turn(
+      Eigen::AngleAxisd(*best_yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()));
+  Similarity3 out = seed;
+  out.rotation = (turn * seed.rotation).normalized();
+  out.translation = turn * (seed.translation - centre) + centre + *best_offset;
+  return out;
+}
+
+}  // namespace
+
+Similarity3 Similarity3::Inverse() const {
+  Similarity3 inverse;
+  inverse.scale = 1.0 / scale;
+  inverse.rotation = rotation.conjugate();
+  inverse.translation = -(inverse.scale * (inverse.rotation * translation));
+  return inverse;
+}
+
+void StructureRegistrationOptions::Check() const {
+  EPILOC_CHECK(!max_distances_m.empty(), "structure registration: no correspondence distance");
+  for (size_t i = 0; i < max_distances_m.size(); ++i) {
+    EPILOC_CHECK(std::isfinite(max_distances_m[i]) && max_distances_m[i] > 0.0,
+                 "structure registration: distances must be > 0");
+    EPILOC_CHECK(i == 0 || max_distances_m[i] <= max_distances_m[i - 1],
+                 "structure registration: distances must go from coarse to fine");
+  }
+  EPILOC_CHECK(max_iterations_per_level >= 1,
+               "structure registration: max_iterations_per_level must be >= 1");
+  EPILOC_CHECK(converged_m >= 0.0, "structure registration: converged_m must be >= 0");
+  EPILOC_CHECK(loss_scale_ratio > 0.0, "structure registration: loss_scale_ratio must be > 0");
+  EPILOC_CHECK(tukey_max_distance_m >= 0.0,
+               "structure registration: tukey_max_distance_m must be >= 0");
+  EPILOC_CHECK(normal_neighbours >= 3, "structure registration: normal_neighbours must be >= 3");
+  EPILOC_CHECK(normal_radius_m > 0.0, "structure registration: normal_radius_m must be > 0");
+  EPILOC_CHECK(max_planarity > 0.0 && max_planarity <= 1.0,
+               "structure registration: max_planarity must be in (0, 1]");
+  EPILOC_CHECK(max_linearity > 0.0 && max_linearity <= 1.0,
+               "structure registration: max_linearity must be in (0, 1]");
+  EPILOC_CHECK(search_along_m >= 0.0 && search_lateral_m >= 0.0 && search_step_m >= 0.0 &&
+                   search_yaw_deg >= 0.0 && search_yaw_step_deg > 0.0 && search_points >= 1 &&
+                   search_truncation_m > 0.0,
+               "structure registration: invalid seed search ranges");
+  EPILOC_CHECK(min_scale_distance_m > 0.0,
+               "structure registration: min_scale_distance_m must be > 0");
+  EPILOC_CHECK(min_inlier_share >= 0.0 && min_inlier_share <= 1.0,
+               "structure registration: min_inlier_share must be in [0, 1]");
+  EPILOC_CHECK(min_points >= 7, "structure registration: min_points must be >= 7");
+}
+
+struct StructureMap::Impl {
+  std::vector<Eigen::Vector3f> points;
+  std::vector<float> data;  // x y z per point, for FLANN
+  std::unique_ptr<flann::Index<flann::L2_Simple<float>>> index;
+  std::vector<Eigen::Matrix3f> projectors;
+  std::vector<uint8_t> has_projector;
+  int neighbours = 12;
+  double radius_m = 0.6;
+  double max_planarity = 0.25;
+  double max_linearity = 0.5;
+  double cell_m = 0.25;                   // of the occupancy grid
+  std::unordered_set<uint64_t> occupied;  // cells holding map points
+
+  uint64_t Cell(const Eigen::Vector3d& x) const {
+    const auto index = [&](double v) {
+      return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v / cell_m)) & 0x1FFFFF);
+    };
+    return index(x.x()) | index(x.y()) << 21 | index(x.z()) << 42;
+  }
+};
+
+StructureMap::StructureMap(const PointCloud& cloud, const StructureRegistrationOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  options.Check();
+  impl_->points = cloud.positions;
+  impl_->neighbours = options.normal_neighbours;
+  impl_->radius_m = options.normal_radius_m;
+  impl_->max_planarity = options.max_planarity;
+  impl_->max_linearity = options.max_linearity;
+  impl_->cell_m = 0.5 * options.search_truncation_m;
+  impl_->occupied.reserve(impl_->points.size());
+  for (const Eigen::Vector3f& p : impl_->points)
+    impl_->occupied.insert(impl_->Cell(p.cast<double>()));
+  impl_->projectors.assign(impl_->points.size(), Eigen::Matrix3f::Identity());
+  impl_->has_projector.assign(impl_->points.size(), 0);
+  if (impl_->points.empty()) return;
+  impl_->data.resize(3 * impl_->points.size());
+  for (size_t i = 0; i < impl_->points.size(); ++i) {
+    for (int k = 0; k < 3; ++k) impl_->data[3 * i + k] = impl_->points[i][k];
+  }
+  flann::Matrix<float> matrix(impl_->data.data(), impl_->points.size(), 3);
+  impl_->index = std::make_unique<flann::Index<flann::L2_Simple<float>>>(
+      matrix, flann::KDTreeSingleIndexParams(12));
+  impl_->index->buildIndex();
+}
+
+StructureMap::~StructureMap() = default;
+
+size_t StructureMap::size() const { return impl_->points.size(); }
+
+const Eigen::Vector3f& StructureMap::Point(int index) const {
+  return impl_->points[static_cast<size_t>(index)];
+}
+
+int StructureMap::Nearest(const Eigen::Vector3d& x, double max_distance_m) const {
+  if (!impl_->index) return -1;
+  float query[3] = {static_cast<float>(x.x()), static_cast<float>(x.y()),
+                    static_cast<float>(x.z())};
+  size_t index = 0;
+  float distance2 = 0.0f;
+  flann::Matrix<float> q(query, 1, 3);
+  flann::Matrix<size_t> i(&index, 1, 1);
+  flann::Matrix<float> d(&distance2, 1, 1);
+  flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED);
+  params.cores = 1;
+  if (impl_->index->knnSearch(q, i, d, 1, params) < 1) return -1;
+  if (distance2 > max_distance_m * max_distance_m) return -1;
+  return static_cast<int>(index);
+}
+
+std::vector<int> StructureMap::Nearest(const std::vector<Eigen::Vector3d>& x,
+                                       double max_distance_m) const {
+  std::vector<int> out(x.size(), -1);
+  if (!impl_->index || x.empty()) return out;
+  std::vector<float> queries(3 * x.size());
+  for (size_t i = 0; i < x.size(); ++i) {
+    for (int k = 0; k < 3; ++k) queries[3 * i + k] = static_cast<float>(x[i][k]);
+  }
+  std::vector<size_t> indices(x.size());
+  std::vector<float> distances(x.size());
+  flann::Matrix<float> q(queries.data(), x.size(), 3);
+  flann::Matrix<size_t> im(indices.data(), x.size(), 1);
+  flann::Matrix<float> dm(distances.data(), x.size(), 1);
+  flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED);
+  params.cores = 1;
+  impl_->index->knnSearch(q, im, dm, 1, params);
+  const float max2 = static_cast<float>(max_distance_m * max_distance_m);
+  for (size_t i = 0; i < x.size(); ++i) {
+    if (distances[i] <= max2) out[i] = static_cast<int>(indices[i]);
+  }
+  return out;
+}
+
+bool StructureMap::Occupied(const Eigen::Vector3d& x) const {
+  return impl_->occupied.count(impl_->Cell(x)) > 0;
+}
+
+const Eigen::Matrix3f& StructureMap::Projector(int index) {
+  const size_t k = static_cast<size_t>(index);
+  Eigen::Matrix3f& projector = impl_->projectors[k];
+  if (impl_->has_projector[k]) return projector;
+  impl_->has_projector[k] = 1;
+  const int n = std::min<int>(impl_->neighbours, static_cast<int>(impl_->points.size()));
+  std::vector<size_t> indices(static_cast<size_t>(n));
+  std::vector<float> distances(static_cast<size_t>(n));
+  float query[3] = {impl_->points[k].x(), impl_->points[k].y(), impl_->points[k].z()};
+  flann::Matrix<float> q(query, 1, 3);
+  flann::Matrix<size_t> im(indices.data(), 1, static_cast<size_t>(n));
+  flann::Matrix<float> dm(distances.data(), 1, static_cast<size_t>(n));
+  flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED);
+  params.cores = 1;
+  const int found = impl_->index->knnSearch(q, im, dm, n, params);
+  const float radius2 = static_cast<float>(impl_->radius_m * impl_->radius_m);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  int used = 0;
+  for (int j = 0; j < found; ++j) {
+    if (distances[j] > radius2) continue;
+    mean += impl_->points[indices[j]].cast<double>();
+    ++used;
+  }
+  if (used < 5) return projector;  // a point
+  mean /= used;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (int j = 0; j < found; ++j) {
+    if (distances[j] > radius2) continue;
+    const Eigen::Vector3d d = impl_->points[indices[j]].cast<double>() - mean;
+    cov += d * d.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(cov);
+  const Eigen::Vector3d values = solver.eigenvalues();  // ascending
+  if (values[1] > 0.0 && values[0] <= impl_->max_planarity * values[1]) {
+    const Eigen::Vector3f n = solver.eigenvectors().col(0).normalized().cast<float>();
+    projector = n * n.transpose();
+  } else if (values[2] > 0.0 && values[1] <= impl_->max_linearity * values[2]) {
+    const Eigen::Vector3f a = solver.eigenvectors().col(2).normalized().cast<float>();
+    projector = Eigen::Matrix3f::Identity() - a * a.transpose();
+  }
+  return projector;
+}
+
+StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& points,
+                                        StructureMap& map,
+                                        const Similarity3& initial,
+                                        const Eigen::Vector3d& direction,
+                                        const StructureRegistrationOptions& options) {
+  options.Check();
+  StructureRegistration result;
+  result.map_from_world = initial;
+  result.num_points = static_cast<int>(points.size());
+  for (const Eigen::Vector3d& p : points) {
+    EPILOC_CHECK(p.allFinite(), "structure registration: a point is not finite");
+  }
+  if (result.num_points < options.min_points) {
+    result.message = fmt::format("{} structure points, need {}", points.size(), options.min_points);
+    return result;
+  }
+  Similarity3 sim = initial;
+  if (options.search_step_m > 0.0) {
+    sim = SearchSeed(points, map, initial, direction, options, &result.search_offset_m,
+                     &result.search_yaw_deg);
+  }
+
+  for (const double max_distance : options.max_distances_m) {
+    const double loss_scale = options.loss_scale_ratio * max_distance;
+    for (int it = 0; it < options.max_iterations_per_level; ++it) {
+      const std::vector<Pair> pairs = FindPairs(points, sim, map, max_distance);
+      if (static_cast<int>(pairs.size()) < options.min_points) {
+        result.message =
+            fmt::format("{} points within {} m of the map", pairs.size(), max_distance);
+        return result;
+      }
+      const Eigen::Vector3d centre = Centroid(pairs);
+      Eigen::Matrix<double, 7, 7> h;
+      Eigen::Matrix<double, 7, 1> g;
+      const RobustLoss loss =
+          max_distance <= options.tukey_max_distance_m ? RobustLoss::kTukey : RobustLoss::kHuber;
+      Accumulate(pairs, centre, loss_scale, loss, max_distance <= options.min_scale_distance_m, &h,
+                 &g);
+      // A little damping keeps directions the structure does not constrain where they are.
+      h.diagonal() += 1e-6 * (h.diagonal().maxCoeff() + 1.0) * Eigen::Matrix<double, 7, 1>::Ones();
+      const Eigen::Matrix<double, 7, 1> step = h.ldlt().solve(-g);
+      if (!step.allFinite()) {
+        result.message = "singular registration problem";
+        return result;
+      }
+      const Eigen::Vector3d omega = step.head<3>();
+      const Eigen::Vector3d delta = step.segment<3>(3);
+      const double sigma = step[6];
+      double radius = 0.0;
+      for (const Pair& p : pairs) radius = std::max(radius, (p.y - centre).norm());
+      const double angle = omega.norm();
+      const Eigen::Quaterniond dr =
+          angle > 0.0 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, omega / angle))
+                      : Eigen::Quaterniond::Identity();
+      const double ds = std::exp(sigma);
+      sim.scale *= ds;
+      sim.rotation = (dr * sim.rotation).normalized();
+      sim.translation = ds * (dr * (sim.translation - centre)) + centre + delta;
+      ++result.iterations;
+      if (delta.norm() + (angle + std::abs(sigma)) * radius < options.converged_m) break;
+    }
+  }
+  result.map_from_world = sim;
+  const double finest = options.max_distances_m.back();
+  const std::vector<Pair> pairs = FindPairs(points, sim, map, finest);
+  result.num_inliers = static_cast<int>(pairs.size());
+  result.inlier_share = static_cast<double>(pairs.size()) / points.size();
+  if (result.num_inliers < options.min_points) {
+    result.message = fmt::format("{} inliers, need {}", result.num_inliers, options.min_points);
+    return result;
+  }
+  double sum2 = 0.0;
+  for (const Pair& p : pairs) sum2 += PairResidual(p) * PairResidual(p);
+  result.rms_m = std::sqrt(sum2 / pairs.size());
+  // Conditioning: the unweighted Hessian of the final pairs.
+  Eigen::Matrix<double, 7, 7> h;
+  Eigen::Matrix<double, 7, 1> g;
+  Accumulate(pairs, Centroid(pairs), 1e30, RobustLoss::kHuber, true, &h, &g);
+  const Eigen::Vector3d u = direction.normalized();
+  const Eigen::Matrix3d htt = h.block<3, 3>(3, 3);
+  result.along_information = u.dot(htt * u) / pairs.size();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(htt);
+  result.condition =
+      eigen.eigenvalues()[0] > 0.0 ? eigen.eigenvalues()[2] / eigen.eigenvalues()[0] : INFINITY;
+  const Eigen::Matrix<double, 7, 7> covariance =
+      h.fullPivLu().inverse() * std::max(result.rms_m * result.rms_m, 1e-12);
+  result.along_sigma_m = std::sqrt(std::max(0.0, u.dot(covariance.block<3, 3>(3, 3) * u)));
+  if (result.inlier_share < options.min_inlier_share) {
+    result.message = fmt::format("inlier share {:.2f} below {:.2f}", result.inlier_share,
+                                 options.min_inlier_share);
+    return result;
+  }
+  result.success = true;
+  return result;
+}
+
+}  // namespace epiloc
