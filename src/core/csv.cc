@@ -95,7 +95,11 @@ void CsvReader::RequireColumns(const std::vector<std::string>& names) const {
   }
 }
 
-bool CsvReader::TakeLine(const std::string& text) {
+bool CsvReader::TakeLine(const std::string& raw) {
+  // A UTF-8 byte order mark (spreadsheet exports) before the first line is not part of the header.
+  static const std::string kBom = "\xEF\xBB\xBF";
+  const std::string& text =
+      line_ == 1 && raw.compare(0, kBom.size(), kBom) == 0 ? raw.substr(kBom.size()) : raw;
   const std::string trimmed = Trim(text);
   if (trimmed.empty() || trimmed[0] == '#') return false;
   fields_ = SplitCsvLine(text);

@@ -2,7 +2,7 @@
 //
 // Comma-separated, first non-comment line is the header, '#' starts a comment line, fields may be
 // double-quoted ("a,b" and "" for a quote). Blank lines are skipped. Every row must have as many
-// fields as the header.
+// fields as the header. A UTF-8 byte order mark at the start of the file is ignored.
 #pragma once
 
 #include <cstdint>
