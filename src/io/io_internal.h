@@ -68,6 +68,7 @@ class PositionCsvRows {
   bool geodetic_ = false;
   std::optional<EnuFrame> enu_;
   int num_q_ = 0;
+  bool has_status_ = false;  // a result CSV: rows whose status is not ok are skipped
   std::optional<double> last_timestamp_s_;
 };
 

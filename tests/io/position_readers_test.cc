@@ -76,6 +76,23 @@ TEST(PositionCsv, ReadsLocalXyzAboutOrigin) {
   ExpectError([&] { ReadPositionCsv(dir / "p.csv", std::nullopt); }, {dir / "p.csv", "origin"});
 }
 
+TEST(PositionCsv, ResultCsvGivesOnlyOkRows) {
+  // build-db --positions RESULT.csv: a lost row (its coordinates a stale guess or empty) must not
+  // become a survey position.
+  TempDir dir;
+  WriteText(dir / "r.csv",
+            "frame,timestamp_s,lat_deg,lon_deg,alt_m,s_m,db_frame,method,status\n"
+            "0,0.0,49.0,8.0,100,0,0,online,ok\n"
+            "1,0.1,10.0,10.0,100,,,online,lost\n"
+            "2,0.2,,,,,,online,rejected\n"
+            "3,0.3,49.0001,8.0,100,11,3,online,ok\n");
+  const PositionTrack track = ReadPositionCsv(dir / "r.csv", std::nullopt);
+  ASSERT_EQ(track.samples.size(), 2u);
+  EXPECT_EQ(track.samples[0].frame, 0);
+  EXPECT_EQ(track.samples[1].frame, 3);
+  EXPECT_NEAR(track.samples[1].position.lat_deg, 49.0001, 1e-12);
+}
+
 TEST(PositionCsv, RejectsBadLines) {
   TempDir dir;
   const std::string header = "timestamp_s,lat_deg,lon_deg,alt_m\n";
