@@ -181,6 +181,11 @@ int RunAnchor(int argc, char** argv) {
   app.add_option("--threads", options.num_threads, "Frames anchored in parallel")
       ->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  CheckCommandOutputs({{"--out", out_path}},
+                      {{"--cloud", inputs.cloud_path},
+                       {"--drive", inputs.drive_dir},
+                       {"--map-photos", inputs.photos_dir},
+                       {"--db", db_path}});
 
   MapOriginInputs origin_inputs{inputs.cloud_path, std::nullopt, db_path};
   if (!origin_text.empty())

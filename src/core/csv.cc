@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <exception>
 #include <iostream>
 
 #include <fmt/format.h>
@@ -181,11 +182,14 @@ std::string FormatFixed(double value, int decimals) {
 }
 
 CsvWriter::CsvWriter(const std::string& path, const std::vector<std::string>& header)
-    : path_(path == "-" ? "standard output" : path), num_columns_(header.size()) {
+    : path_(path == "-" ? "standard output" : path),
+      uncaught_exceptions_(std::uncaught_exceptions()),
+      num_columns_(header.size()) {
   if (path == "-") {
     out_ = &std::cout;
   } else {
-    file_.open(path);
+    atomic_ = std::make_unique<AtomicFile>(path);
+    file_.open(atomic_->temp_path());
     if (!file_) Throw("{}: cannot open for writing", path);
     out_ = &file_;
   }
@@ -213,13 +217,25 @@ void CsvWriter::Flush() {
 void CsvWriter::Close() {
   if (!out_) return;
   out_->flush();
-  const bool ok = static_cast<bool>(*out_);
-  if (file_.is_open()) file_.close();
+  bool ok = static_cast<bool>(*out_);
+  if (file_.is_open()) {
+    file_.close();
+    ok = ok && !file_.fail();
+  }
   out_ = nullptr;
-  if (!ok) Throw("{}: write failed", path_);
+  if (!ok) {
+    if (atomic_) atomic_->Discard();
+    Throw("{}: write failed", path_);
+  }
+  if (atomic_) atomic_->Commit();
 }
 
 CsvWriter::~CsvWriter() {
+  if (atomic_ && std::uncaught_exceptions() > uncaught_exceptions_) {
+    if (file_.is_open()) file_.close();
+    atomic_->Discard();  // a failed run leaves no partial file
+    return;
+  }
   try {
     Close();
   } catch (const Error&) {

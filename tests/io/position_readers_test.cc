@@ -28,6 +28,14 @@ TEST(Timestamps, ParsesKittiFormatWithFullPrecision) {
   ExpectError([] { ParseTimestamp("2011-13-26 13:04:32", "f.txt:3"); }, {"f.txt:3"});
   ExpectError([] { ParseTimestamp("2011-09-26 13:04:32.5x", "f.txt:4"); }, {"f.txt:4"});
   ExpectError([] { ParseTimestamp("abc", "f.txt:5"); }, {"f.txt:5"});
+  // Issue 18 item 12: days beyond the month's end were accepted (2023-02-30 = March 2nd).
+  ExpectError([] { ParseTimestamp("2023-02-30 00:00:00", "f.txt:6"); }, {"f.txt:6", "2023-02-30"});
+  ExpectError([] { ParseTimestamp("2023-02-29 00:00:00", "f.txt:7"); }, {"f.txt:7"});
+  ExpectError([] { ParseTimestamp("2023-04-31 00:00:00", "f.txt:8"); }, {"f.txt:8"});
+  EXPECT_NEAR(ParseTimestamp("2024-02-29 00:00:00", "x") - ParseTimestamp("2024-02-28 00:00:00", "x"),
+              86400.0, 0.0);
+  EXPECT_NEAR(ParseTimestamp("2000-02-29 00:00:00", "x"), 951782400.0, 0.0);
+  ExpectError([] { ParseTimestamp("1900-02-29 00:00:00", "f.txt:9"); }, {"f.txt:9"});
 }
 
 TEST(Timestamps, ReadsFileAndRejectsBackwards) {
@@ -194,6 +202,8 @@ TEST(Nmea, RejectsMalformedSentences) {
   WriteText(dir / "back.nmea", Nmea("GPRMC,123519,A,4807.038,N,01131.000,E,0,0,230394,,") +
                                    Nmea("GPRMC,123518,A,4807.038,N,01131.000,E,0,0,230394,,"));
   ExpectError([&] { ReadNmea(dir / "back.nmea"); }, {dir / "back.nmea:2", "backwards"});
+  WriteText(dir / "feb30.nmea", Nmea("GPRMC,123519,A,4807.038,N,01131.000,E,0,0,300223,,"));
+  ExpectError([&] { ReadNmea(dir / "feb30.nmea"); }, {dir / "feb30.nmea:1", "300223"});
 }
 
 // Writes a KITTI-style OXTS folder with `n` records 0.1 s apart, moving north-east.
