@@ -21,6 +21,26 @@ void PrintUsage() {
   std::printf("  %-14s %s\n", "help", "Print this list");
 }
 
+// A message as one line on a terminal: line breaks (OpenCV's exception texts have them) become
+// spaces, other control bytes (from input files) are shown as \xNN.
+std::string OneLine(const std::string& message) {
+  std::string line;
+  for (size_t i = 0; i < message.size(); ++i) {
+    const unsigned char c = static_cast<unsigned char>(message[i]);
+    if (c == '\n' || c == '\r') {
+      if (!line.empty() && line.back() != ' ') line += ' ';
+    } else if (c < 0x20 || c == 0x7f) {
+      char hex[8];
+      std::snprintf(hex, sizeof(hex), "\\x%02x", c);
+      line += hex;
+    } else {
+      line += static_cast<char>(c);
+    }
+  }
+  while (!line.empty() && line.back() == ' ') line.pop_back();
+  return line;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -43,14 +63,15 @@ int main(int argc, char** argv) {
     try {
       return command.run(argc - 1, argv + 1);
     } catch (const epiloc::Error& e) {
-      std::fprintf(stderr, "epiloc %s: error: %s\n", name.c_str(), e.what());
+      std::fprintf(stderr, "epiloc %s: error: %s\n", name.c_str(), OneLine(e.what()).c_str());
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "epiloc %s: error: %s\n", name.c_str(), e.what());
+      std::fprintf(stderr, "epiloc %s: error: %s\n", name.c_str(), OneLine(e.what()).c_str());
     }
     return epiloc::kExitError;
   }
   const std::string suggestion = epiloc::SuggestCommand(name);
-  std::fprintf(stderr, "epiloc: unknown command '%s'%s (see 'epiloc help')\n", name.c_str(),
+  std::fprintf(stderr, "epiloc: unknown command '%s'%s (see 'epiloc help')\n",
+               OneLine(name).c_str(),
                suggestion.empty() ? "" : (", did you mean '" + suggestion + "'?").c_str());
   return epiloc::kExitUsage;
 }

@@ -10,6 +10,7 @@
 #include "epiloc/anchor/map_photos.h"
 #include "epiloc/camera/undistorter.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 #include "epiloc/io/frame_reader.h"
 
 namespace epiloc {
@@ -108,7 +109,9 @@ void WriteDepthPng(const cv::Mat& depth, const std::string& path) {
       out[u] = static_cast<uint16_t>(std::clamp(std::lround(in[u] * 256.0f), 0L, 65535L));
     }
   }
-  if (!cv::imwrite(path, scaled)) Throw("{}: cannot write image", path);
+  AtomicFile file(path);
+  if (!cv::imwrite(file.temp_path(), scaled)) Throw("{}: cannot write image", path);
+  file.Commit();
 }
 
 cv::Mat StackFrameAndRendering(const cv::Mat& frame, const cv::Mat& rendering) {

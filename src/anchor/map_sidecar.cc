@@ -10,6 +10,7 @@
 #include <spdlog/spdlog.h>
 
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 #include "epiloc/db/database.h"
 
 namespace epiloc {
@@ -102,11 +103,9 @@ void WriteMapSidecar(const MapSidecar& sidecar, const std::string& path) {
     json["bounds"] = {{"min", VectorJson(sidecar.bounds.min)},
                       {"max", VectorJson(sidecar.bounds.max)}};
   }
-  std::ofstream out(path);
-  if (!out) Throw("{}: cannot open for writing", path);
+  AtomicOfstream out(path);
   out << json.dump(2) << "\n";  // doubles round-trip exactly
-  out.close();
-  if (!out) Throw("{}: write failed", path);
+  out.Commit();
 }
 
 MapSidecar ReadMapSidecar(const std::string& path) {

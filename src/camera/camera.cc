@@ -1,5 +1,6 @@
 #include "epiloc/camera/camera.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "epiloc/core/error.h"
@@ -21,8 +22,21 @@ Eigen::Matrix3d Camera::K() const {
 
 void Camera::Check(const std::string& where) const {
   if (width <= 0 || height <= 0) Throw("{}: image size {}x{} must be positive", where, width, height);
+  if (width >= kMaxImageSide || height >= kMaxImageSide) {
+    Throw("{}: image size {}x{} is not below {} pixels a side", where, width, height,
+          kMaxImageSide);
+  }
   if (!(std::isfinite(fx) && std::isfinite(fy) && fx > 0 && fy > 0)) {
     Throw("{}: focal lengths fx={} fy={} must be positive", where, fx, fy);
+  }
+  // A pinhole focal length outside these bounds is a field of view above ~175 deg or below
+  // ~0.3 deg: a typo or a unit mistake, never a road camera.
+  const double side = std::max(width, height);
+  for (const double f : {fx, fy}) {
+    if (f < kMinFocalPerSide * side || f > kMaxFocalPerSide * side) {
+      Throw("{}: focal length {} px is outside the sane range [{}, {}] px for a {}x{} image",
+            where, f, kMinFocalPerSide * side, kMaxFocalPerSide * side, width, height);
+    }
   }
   if (!(std::isfinite(cx) && std::isfinite(cy))) Throw("{}: principal point is not finite", where);
   if (cx < 0 || cy < 0 || cx > width || cy > height) {
@@ -31,6 +45,15 @@ void Camera::Check(const std::string& where) const {
   }
   for (const double d : distortion) {
     if (!std::isfinite(d)) Throw("{}: distortion coefficient is not finite", where);
+  }
+  static const char* const kNames[5] = {"k1", "k2", "p1", "p2", "k3"};
+  for (int i = 0; i < 5; ++i) {
+    const bool tangential = i == 2 || i == 3;
+    const double bound = tangential ? kMaxTangentialDistortion : kMaxRadialDistortion;
+    if (std::abs(distortion[i]) > bound) {
+      Throw("{}: distortion {} = {} is beyond +-{} (OpenCV's k1, k2, p1, p2, k3 order?)", where,
+            kNames[i], distortion[i], bound);
+    }
   }
 }
 

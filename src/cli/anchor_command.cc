@@ -252,6 +252,11 @@ int RunAnchor(int argc, char** argv) {
                "--method structure does not use --map-photos");
   EPILOC_CHECK(method != "photos" || !inputs.photos_dir.empty(),
                "--method photos needs --map-photos DRIVE");
+  CheckCommandOutputs({{"--out", out_path}}, {{"--cloud", inputs.cloud_path},
+                                              {"--drive", inputs.drive_dir},
+                                              {"--map-photos", inputs.photos_dir},
+                                              {"--vo", inputs.vo_path},
+                                              {"--db", db_path}});
 
   MapOriginInputs origin_inputs{inputs.cloud_path, std::nullopt, db_path};
   if (!origin_text.empty())

@@ -37,6 +37,11 @@ int RunBuildDb(int argc, char** argv) {
                "Skip triangulating the local 3-D structure afterwards (run `epiloc triangulate` "
                "later for its options)");
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  const bool positions_file =
+      options.positions != "auto" && options.positions != "ground_truth" &&
+      options.positions != "gnss";
+  CheckCommandOutputs({{"--db", db_path}},
+                      {{"--drive", drive_dir}, {"--positions", positions_file ? options.positions : ""}});
   options.triangulate = !no_triangulate;
 
   Progress progress("build-db", 0);

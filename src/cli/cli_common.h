@@ -3,9 +3,11 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
+#include "epiloc/core/output_file.h"
 #include "epiloc/survey/triangulate.h"
 
 namespace epiloc {
@@ -20,7 +22,24 @@ void AddCommonFlags(CLI::App& app, CommonFlags& flags);
 
 // Parses argv; on success applies the common flags (logging, progress style) and returns nullopt;
 // otherwise prints help (exit 0) or one error line plus a hint (exit 2) and returns the code.
+// An unknown --option is named first (with the closest known one), before CLI11 reports missing
+// required options; a --config file is checked by CheckConfigFile first.
 std::optional<int> Parse(CLI::App& app, CommonFlags& flags, int argc, char** argv);
+
+// Checks a --config file line by line (TOML / INI: `key = value`, '#' or ';' comments, an
+// optional [default] section): throws Error "FILE:LINE: ..." for a line that is not `key = value`,
+// a key that is not one of `names` (long option names), an unterminated quoted string or list,
+// an empty value or a key given twice.
+void CheckConfigFile(const std::string& path, const std::vector<std::string>& names);
+
+// The inputs a path option stands for: a drive directory (one holding drive.json) gives the files
+// and folders its manifest names (image folders as folder_contents), anything else the path
+// itself. Empty paths give nothing.
+std::vector<NamedPath> InputsOf(const std::string& option, const std::string& path);
+
+// CheckOutputs(outputs, inputs) with the inputs expanded by InputsOf.
+void CheckCommandOutputs(const std::vector<NamedPath>& outputs,
+                         const std::vector<NamedPath>& inputs);
 
 // One line of triangulation figures on stdout (triangulate and build-db).
 void PrintTriangulateSummary(const TriangulateSummary& summary);

@@ -81,6 +81,13 @@ int RunEvaluate(int argc, char** argv) {
   app.add_option("--gnuplot", report.gnuplot, "gnuplot executable")->capture_default_str();
   app.add_flag("--no-png", no_png, "Report: SVG plots only, no PNG copies");
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  CheckCommandOutputs({{"--json", json_path}, {"--report", report_path}, {"--errors", errors_path}},
+                      {{"--result", inputs.result_path},
+                       {"--truth", inputs.truth_path},
+                       {"--truth-times", inputs.truth.times_path},
+                       {"--route", inputs.route_db_path},
+                       {"--route-drive", inputs.route_drive_dir},
+                       {"--gnss", inputs.gnss_drive_dir}});
 
   inputs.truth.format = ParseTruthFormat(truth_format);
   if (!truth_origin.empty()) {

@@ -27,6 +27,7 @@ int RunExport(int argc, char** argv) {
   app.add_option("--origin", origin,
                  "LAT,LON,ALT of the tum/kitti ENU frame (default: the first exported row)");
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  CheckCommandOutputs({{"--out", out_path}}, {{"--result", result_path}});
 
   options.format = ParseTrajectoryFormat(format);
   if (!origin.empty()) {

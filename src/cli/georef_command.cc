@@ -71,6 +71,11 @@ int RunGeoref(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--seed", simulation.seed, "Simulation: random seed")->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  CheckCommandOutputs({{"--out", out_path}},
+                      {{"--vo", vo_path},
+                       {"--anchors", anchors_path},
+                       {"--drive", drive_dir},
+                       {"--vo-times", import.times_path}});
 
   if (simulate) {
     EPILOC_CHECK(!drive_dir.empty(), "--simulate-anchors needs --drive");

@@ -184,6 +184,15 @@ int RunLocalize(int argc, char** argv) {
   options.record_offline = options.WantsOffline();
   options.diagnostics = !diagnostics_path.empty();
   options.Check();
+  CheckCommandOutputs({{"--out", out_path},
+                       {"--nmea-out", nmea_path},
+                       {"--geojson", geojson_path},
+                       {"--diagnostics", diagnostics_path}},
+                      {{"--db", db_path},
+                       {"--drive", drive_dir},
+                       {"--video", video},
+                       {"--calibration", calibration},
+                       {"--gnss", gnss_path}});
 
   std::unique_ptr<FrameSource> source;
   if (!video.empty()) {

@@ -11,6 +11,7 @@
 #include "epiloc/cli/commands.h"
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 
 namespace epiloc {
 namespace {
@@ -29,7 +30,9 @@ Rigid3d ParsePose(const std::string& text) {
 }
 
 void WriteImage(const std::string& path, const cv::Mat& image) {
-  if (!cv::imwrite(path, image)) Throw("{}: cannot write image", path);
+  AtomicFile file(path);
+  if (!cv::imwrite(file.temp_path(), image)) Throw("{}: cannot write image", path);
+  file.Commit();
 }
 
 }  // namespace
@@ -68,6 +71,18 @@ int RunRender(int argc, char** argv) {
   app.add_option("--depth", depth_path, "Depth buffer, 16-bit PNG, metres * 256 (0 = none)");
   app.add_option("--compare", compare_path, "The undistorted frame above the rendering (PNG)");
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  CheckCommandOutputs({{"--out", out_path}, {"--depth", depth_path}, {"--compare", compare_path}},
+                      {{"--cloud", inputs.cloud_path},
+                       {"--drive", inputs.drive_dir},
+                       {"--map-photos", inputs.photos_dir},
+                       {"--db", db_path}});
+  for (const auto& [option, path] :
+       {std::pair<std::string, std::string>{"--out", out_path}, {"--depth", depth_path},
+        {"--compare", compare_path}}) {
+    if (!path.empty() && !cv::haveImageWriter(path)) {
+      Throw("{} {}: not an image format OpenCV writes (use .png)", option, path);
+    }
+  }
 
   MapOriginInputs origin_inputs{inputs.cloud_path, std::nullopt, db_path};
   if (!origin_text.empty()) origin_inputs.explicit_origin = ParseGeodetic(origin_text, "--cloud-origin");

@@ -47,6 +47,7 @@ int RunVo(int argc, char** argv) {
   app.add_option("--threads", options.num_threads, "Bundle-adjustment threads")
       ->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
+  CheckCommandOutputs({{"--out", out_path}}, {{"--drive", drive_dir}});
 
   options.keep_points = points_path != "none";
   options.Check();

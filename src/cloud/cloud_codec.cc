@@ -358,6 +358,8 @@ void PointSource::DecodeRecords(
 }
 
 void PointSource::CheckBinaryBody(int64_t declared, uint64_t body_offset, size_t record_bytes) {
+  if (declared < 0) Throw("{}: corrupt header: {} points declared", path_, declared);
+  EPILOC_CHECK(record_bytes > 0, "{}: corrupt header: records of 0 bytes", path_);
   const uint64_t size = std::filesystem::file_size(path_);
   const auto room =
       static_cast<int64_t>(size > body_offset ? (size - body_offset) / record_bytes : 0);
@@ -365,6 +367,7 @@ void PointSource::CheckBinaryBody(int64_t declared, uint64_t body_offset, size_t
     Throw("{}: truncated: the header declares {} points, the file ends after {} complete ones",
           path_, declared, room);
   }
+  if (declared > kMaxPointsPerFile) Throw("{}: corrupt header: {} points declared", path_, declared);
   reserve_hint_ = declared;
 }
 

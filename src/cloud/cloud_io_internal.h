@@ -105,6 +105,10 @@ std::string ToLower(std::string_view text);
 enum class FieldRole { kOther, kX, kY, kZ, kIntensity, kRed, kGreen, kBlue, kPackedRgb };
 FieldRole RoleOfFieldName(const std::string& name);
 
+// Most points one file may declare (8.6e9: ~100 GB of float positions); a header claiming more is
+// corrupt. Sizes read from headers are also checked against the file's size before allocating.
+constexpr int64_t kMaxPointsPerFile = int64_t{1} << 33;
+
 // A sequential reader of one file's point records, implemented per format.
 class PointSource {
  public:
@@ -129,7 +133,8 @@ class PointSource {
 
  protected:
   // For a binary body of `declared` records of `record_bytes` starting at byte `body_offset`:
-  // throws Error "<path>: truncated ..." if the file is too short, else sets reserve_hint().
+  // throws Error "<path>: truncated ..." if the file is too short (or `declared` is negative or
+  // beyond kMaxPointsPerFile), else sets reserve_hint().
   void CheckBinaryBody(int64_t declared, uint64_t body_offset, size_t record_bytes);
   // For text with `declared` points: a reserve hint of at most one point per 6 bytes ("0 0 0\n").
   void SetTextReserveHint(int64_t declared);

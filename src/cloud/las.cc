@@ -66,6 +66,8 @@ class LasSource : public PointSource {
     if (minor >= 4 && header_bytes >= kLas14HeaderBytes && got >= kLas14HeaderBytes) {
       num_points = static_cast<int64_t>(LoadScalar(&header[247], ScalarType::kUint64, swap));
     }
+    EPILOC_CHECK(num_points >= 0 && num_points <= kMaxPointsPerFile,
+                 "{}: corrupt LAS header: {} points", path, num_points);
     const uint64_t file_bytes = std::filesystem::file_size(path);
     EPILOC_CHECK(point_offset >= kLegacyHeaderBytes && point_offset <= file_bytes,
                  "{}: bad LAS offset to point data {}", path, point_offset);

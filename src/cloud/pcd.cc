@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <iterator>
 
 #include <fmt/format.h>
 
 #include "cloud_io_internal.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 
 namespace epiloc {
 namespace cloud_internal {
@@ -139,6 +141,7 @@ class PcdSource : public PointSource {
           fields_.push_back(PcdField{std::string(tokens[k])});
         }
       } else if (key == "SIZE" || key == "TYPE" || key == "COUNT") {
+        // SIZE is 1, 2, 4 or 8 (checked with TYPE later); COUNT bounds the record size.
         EPILOC_CHECK(!fields_.empty(), "{}: {} before FIELDS", where(), key);
         EPILOC_CHECK(n == fields_.size(), "{}: {} has {} entries for {} fields", where(), key, n,
                      fields_.size());
@@ -147,6 +150,8 @@ class PcdSource : public PointSource {
             fields_[k].size = static_cast<size_t>(ParseCount(tokens[k + 1], where()));
           } else if (key == "COUNT") {
             fields_[k].count = ParseCount(tokens[k + 1], where());
+            EPILOC_CHECK(fields_[k].count <= (1 << 20), "{}: COUNT {} is too large", where(),
+                         fields_[k].count);
           } else {
             EPILOC_CHECK(tokens[k + 1] == "F" || tokens[k + 1] == "I" || tokens[k + 1] == "U",
                          "{}: unknown TYPE '{}'", where(), tokens[k + 1]);
@@ -179,6 +184,13 @@ class PcdSource : public PointSource {
     EPILOC_CHECK(!fields_.empty(), "{}: the PCD header has no FIELDS line", path_);
     EPILOC_CHECK(width >= 0 || num_points_ >= 0, "{}: the PCD header has neither WIDTH nor POINTS",
                  path_);
+    for (const int64_t count : {width, height, num_points_}) {
+      EPILOC_CHECK(count <= kMaxPointsPerFile, "{}: corrupt header: {} points", path_, count);
+    }
+    // Both at most 2^33 now: the product fits in 64 bits.
+    if (width >= 0 && height > 0 && width > kMaxPointsPerFile / height) {
+      Throw("{}: corrupt header: WIDTH x HEIGHT = {} x {} points", path_, width, height);
+    }
     if (num_points_ < 0) num_points_ = width * height;
     if (width >= 0 && width * height != num_points_) {
       Throw("{}: POINTS {} is not WIDTH x HEIGHT = {} x {}", path_, num_points_, width, height);
@@ -274,7 +286,17 @@ class PcdSource : public PointSource {
         static_cast<uint32_t>(LoadScalar(sizes, ScalarType::kUint32, !HostIsLittleEndian()));
     const auto uncompressed =
         static_cast<uint32_t>(LoadScalar(sizes + 4, ScalarType::kUint32, !HostIsLittleEndian()));
+    EPILOC_CHECK(num_points_ == 0 || record_bytes_ <= (uint64_t{1} << 32) / num_points_,
+                 "{}: corrupt header: {} points of {} bytes", path_, num_points_, record_bytes_);
     const size_t expected = record_bytes_ * static_cast<size_t>(num_points_);
+    // The header's sizes are checked against the file before anything is allocated: a 1 kB file
+    // must not make us reserve gigabytes.
+    const uint64_t body = static_cast<uint64_t>(in_.tellg());
+    const uint64_t file_bytes = std::filesystem::file_size(path_);
+    EPILOC_CHECK(compressed <= (file_bytes > body ? file_bytes - body : 0),
+                 "{}: truncated: the compressed PCD body claims {} bytes, the file has {} after "
+                 "the header",
+                 path_, compressed, file_bytes > body ? file_bytes - body : 0);
     EPILOC_CHECK(uncompressed == expected,
                  "{}: the compressed PCD body holds {} bytes, {} points of {} bytes need {}", path_,
                  uncompressed, num_points_, record_bytes_, expected);
@@ -352,8 +374,8 @@ void WritePcd(const std::string& path, const PointCloud& cloud, bool binary) {
   cloud.Check();
   const bool intensity = cloud.HasIntensity();
   const bool colour = cloud.HasColour();
-  std::ofstream out;
-  OpenForWriting(path, &out);
+  AtomicOfstream file(path, std::ios::binary | std::ios::trunc);
+  std::ofstream& out = file.stream();
   const size_t n = cloud.size();
   out << "# .PCD v0.7 - Point Cloud Data file format (written by epiloc)\nVERSION 0.7\n"
       << "FIELDS x y z" << (intensity ? " intensity" : "") << (colour ? " rgb" : "") << "\n"
@@ -394,7 +416,7 @@ void WritePcd(const std::string& path, const PointCloud& cloud, bool binary) {
     }
     out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
   }
-  CloseOrThrow(path, &out);
+  file.Commit();
 }
 
 }  // namespace cloud_internal

@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <iterator>
 
 #include <fmt/format.h>
 
 #include "cloud_io_internal.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 
 namespace epiloc {
 namespace cloud_internal {
@@ -276,6 +278,11 @@ class PlySource : public PointSource {
     }
   }
 
+  uint64_t FileBytes() {
+    if (file_bytes_ == 0) file_bytes_ = std::filesystem::file_size(path_);
+    return file_bytes_;
+  }
+
   void ReadExactly(char* data, size_t bytes, int64_t record) {
     in_.read(data, static_cast<std::streamsize>(bytes));
     if (static_cast<size_t>(in_.gcount()) != bytes) {
@@ -289,9 +296,14 @@ class PlySource : public PointSource {
     ReadExactly(bytes, ScalarSize(p.count_type), record);
     const double count = LoadScalar(bytes, p.count_type, swap());
     EPILOC_CHECK(count >= 0, "{}: negative list length in record {}", path_, record);
-    const size_t skip = static_cast<size_t>(count) * ScalarSize(p.type);
-    scratch_.resize(skip);
-    ReadExactly(scratch_.data(), skip, record);
+    // Seek rather than read: a corrupt length must not allocate (up to 32 GB for a uint32).
+    const double skip = count * static_cast<double>(ScalarSize(p.type));
+    const std::streamoff at = in_.tellg();
+    if (at < 0 || skip > static_cast<double>(FileBytes() - static_cast<uint64_t>(at))) {
+      Throw("{}: truncated: a list of {} values in record {} runs past the end of the file", path_,
+            count, record);
+    }
+    in_.seekg(static_cast<std::streamoff>(skip), std::ios::cur);
   }
 
   void SkipElement(const PlyElement& element) {
@@ -302,7 +314,12 @@ class PlySource : public PointSource {
         }
       }
     } else if (element.FixedSize()) {
-      in_.seekg(static_cast<std::streamoff>(element.count * element.ScalarBytes()), std::ios::cur);
+      const double bytes = static_cast<double>(element.count) * element.ScalarBytes();
+      const std::streamoff at = in_.tellg();
+      if (at < 0 || bytes > static_cast<double>(FileBytes() - static_cast<uint64_t>(at))) {
+        Throw("{}: truncated: the file ends inside the PLY element '{}'", path_, element.name);
+      }
+      in_.seekg(static_cast<std::streamoff>(bytes), std::ios::cur);
     } else {
       std::vector<char> value(8);
       for (int64_t r = 0; r < element.count; ++r) {
@@ -382,7 +399,7 @@ class PlySource : public PointSource {
   LineReader reader_;
   int64_t done_ = 0;
   std::vector<char> buffer_;
-  std::vector<char> scratch_;
+  uint64_t file_bytes_ = 0;  // size of the file, read when first needed
   std::vector<std::string_view> tokens_;
   std::vector<double> values_;
 };
@@ -443,8 +460,8 @@ void AppendPlyRecords(const PointCloud& cloud, size_t begin, size_t end, std::st
 
 void WritePly(const std::string& path, const PointCloud& cloud, bool binary) {
   cloud.Check();
-  std::ofstream out;
-  OpenForWriting(path, &out);
+  AtomicOfstream file(path, std::ios::binary | std::ios::trunc);
+  std::ofstream& out = file.stream();
   out << PlyHeader(static_cast<int64_t>(cloud.size()), cloud.HasIntensity(), cloud.HasColour(),
                    binary);
   constexpr size_t kBlock = 1 << 16;
@@ -468,7 +485,7 @@ void WritePly(const std::string& path, const PointCloud& cloud, bool binary) {
     }
     out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
   }
-  CloseOrThrow(path, &out);
+  file.Commit();
 }
 
 }  // namespace cloud_internal

@@ -8,6 +8,7 @@
 
 #include "cloud_io_internal.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 
 namespace epiloc {
 namespace cloud_internal {
@@ -189,8 +190,8 @@ std::unique_ptr<PointSource> OpenXyzSource(const std::string& path,
 
 void WriteKittiBin(const std::string& path, const PointCloud& cloud) {
   cloud.Check();
-  std::ofstream out;
-  OpenForWriting(path, &out);
+  AtomicOfstream file(path, std::ios::binary | std::ios::trunc);
+  std::ofstream& out = file.stream();
   constexpr size_t kBlock = 1 << 16;
   std::string buffer;
   for (size_t begin = 0; begin < cloud.size(); begin += kBlock) {
@@ -202,13 +203,13 @@ void WriteKittiBin(const std::string& path, const PointCloud& cloud) {
     }
     out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
   }
-  CloseOrThrow(path, &out);
+  file.Commit();
 }
 
 void WriteXyz(const std::string& path, const PointCloud& cloud) {
   cloud.Check();
-  std::ofstream out;
-  OpenForWriting(path, &out);
+  AtomicOfstream file(path, std::ios::binary | std::ios::trunc);
+  std::ofstream& out = file.stream();
   constexpr size_t kBlock = 1 << 16;
   std::string buffer;
   for (size_t begin = 0; begin < cloud.size(); begin += kBlock) {
@@ -226,7 +227,7 @@ void WriteXyz(const std::string& path, const PointCloud& cloud) {
     }
     out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
   }
-  CloseOrThrow(path, &out);
+  file.Commit();
 }
 
 }  // namespace cloud_internal

@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <exception>
 #include <iostream>
 
 #include <fmt/format.h>
@@ -95,7 +96,11 @@ void CsvReader::RequireColumns(const std::vector<std::string>& names) const {
   }
 }
 
-bool CsvReader::TakeLine(const std::string& text) {
+bool CsvReader::TakeLine(const std::string& raw) {
+  // A UTF-8 byte order mark (spreadsheet exports) before the first line is not part of the header.
+  static const std::string kBom = "\xEF\xBB\xBF";
+  const std::string& text =
+      line_ == 1 && raw.compare(0, kBom.size(), kBom) == 0 ? raw.substr(kBom.size()) : raw;
   const std::string trimmed = Trim(text);
   if (trimmed.empty() || trimmed[0] == '#') return false;
   fields_ = SplitCsvLine(text);
@@ -177,11 +182,14 @@ std::string FormatFixed(double value, int decimals) {
 }
 
 CsvWriter::CsvWriter(const std::string& path, const std::vector<std::string>& header)
-    : path_(path == "-" ? "standard output" : path), num_columns_(header.size()) {
+    : path_(path == "-" ? "standard output" : path),
+      uncaught_exceptions_(std::uncaught_exceptions()),
+      num_columns_(header.size()) {
   if (path == "-") {
     out_ = &std::cout;
   } else {
-    file_.open(path);
+    atomic_ = std::make_unique<AtomicFile>(path);
+    file_.open(atomic_->temp_path());
     if (!file_) Throw("{}: cannot open for writing", path);
     out_ = &file_;
   }
@@ -209,13 +217,25 @@ void CsvWriter::Flush() {
 void CsvWriter::Close() {
   if (!out_) return;
   out_->flush();
-  const bool ok = static_cast<bool>(*out_);
-  if (file_.is_open()) file_.close();
+  bool ok = static_cast<bool>(*out_);
+  if (file_.is_open()) {
+    file_.close();
+    ok = ok && !file_.fail();
+  }
   out_ = nullptr;
-  if (!ok) Throw("{}: write failed", path_);
+  if (!ok) {
+    if (atomic_) atomic_->Discard();
+    Throw("{}: write failed", path_);
+  }
+  if (atomic_) atomic_->Commit();
 }
 
 CsvWriter::~CsvWriter() {
+  if (atomic_ && std::uncaught_exceptions() > uncaught_exceptions_) {
+    if (file_.is_open()) file_.close();
+    atomic_->Discard();  // a failed run leaves no partial file
+    return;
+  }
   try {
     Close();
   } catch (const Error&) {

@@ -2,7 +2,9 @@
 
 #include <fmt/format.h>
 #include <sqlite3.h>
+#include <unistd.h>
 
+#include <filesystem>
 #include <iterator>
 
 #include "database_internal.h"
@@ -25,6 +27,25 @@ constexpr int kLatestSchemaVersion =
 // Long enough to ride out another writer's short transaction, short enough
 // that a database held by a long-running writer fails promptly.
 constexpr int kBusyTimeoutMs = 2000;
+
+// True if a file can be created in the folder of `path` (access(2) also reports read-only mounts).
+bool FolderWritable(const std::string& path) {
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  return ::access(parent.empty() ? "." : parent.c_str(), W_OK) == 0;
+}
+
+// `path` for a file: URI (RFC 3986 reserved characters that SQLite's URI parser would read).
+std::string UriEscape(const std::string& path) {
+  std::string out;
+  for (const char c : path) {
+    if (c == '%' || c == '?' || c == '#') {
+      out += fmt::format("%{:02x}", static_cast<unsigned char>(c));
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -53,11 +74,30 @@ int CheckSqlite(int rc,
 using internal::Query;
 
 Database::Impl::Impl(const std::string& path, Mode mode) : path_(path) {
-  const int flags = mode == Mode::kReadOnly
-                        ? SQLITE_OPEN_READONLY
-                        : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE;
+  int flags = mode == Mode::kReadOnly ? SQLITE_OPEN_READONLY
+                                      : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE;
+  std::string open_path = path;
+  const bool on_disk = path != ":memory:" && !path.empty();
+  if (on_disk && mode == Mode::kReadOnly && !FolderWritable(path)) {
+    // Even a reader of a WAL database creates <db>-shm beside it, which read-only media refuse
+    // ("attempt to write a readonly database"). Where no -shm can be made no SQLite writer can
+    // work either, so the file cannot change under us: open it immutable.
+    std::error_code error;
+    if (std::filesystem::file_size(path + "-wal", error) > 0 && !error) {
+      Throw(
+          "{}: its write-ahead log {}-wal holds changes not yet merged and the folder is "
+          "read-only: run any epiloc command on it once where it can be written",
+          path, path);
+    }
+    open_path = "file:" + UriEscape(path) + "?immutable=1";
+    flags |= SQLITE_OPEN_URI;
+  }
+  if (on_disk && mode == Mode::kReadWrite && std::filesystem::exists(path) &&
+      (!FolderWritable(path) || ::access(path.c_str(), W_OK) != 0)) {
+    Throw("{}: the database (or its folder) is read-only, and this command writes to it", path);
+  }
   sqlite3* db = nullptr;
-  const int rc = sqlite3_open_v2(path.c_str(), &db, flags, nullptr);
+  const int rc = sqlite3_open_v2(open_path.c_str(), &db, flags, nullptr);
   connection_.reset(db);  // closed on every path, also when opening failed
   Check(rc, "opening the database");
   Check(sqlite3_extended_result_codes(db, 1), "enabling extended codes");
@@ -79,6 +119,9 @@ Database::Impl::Impl(const std::string& path, Mode mode) : path_(path) {
           path_, version, kLatestSchemaVersion);
     }
   } else {
+    // Before switching to WAL, which would persist in another program's database and leave
+    // -wal/-shm files beside it.
+    if (version == 0) RefuseForeignTables();
     if (path != ":memory:" && !path.empty()) {
       Exec("PRAGMA journal_mode = WAL", "enabling write-ahead logging");
     }
@@ -110,6 +153,17 @@ int64_t Database::Impl::QueryInt(const char* sql, std::string_view what) {
   return query.Step() ? query.Int() : 0;
 }
 
+void Database::Impl::RefuseForeignTables() {
+  // Tables in a version-0 file belong to another program: never add ours.
+  const int64_t tables =
+      QueryInt("SELECT count(*) FROM sqlite_schema WHERE name NOT LIKE 'sqlite_%'",
+               "reading the schema");
+  if (tables > 0) {
+    Throw("{}: an SQLite database but not an epiloc one (schema version 0 and {} tables)", path_,
+          tables);
+  }
+}
+
 void Database::Impl::CheckNotNewer(int version) const {
   if (version > kLatestSchemaVersion) {
     Throw(
@@ -128,18 +182,7 @@ void Database::Impl::Migrate() {
     const int version = static_cast<int>(
         QueryInt("PRAGMA user_version", "reading the schema version"));
     CheckNotNewer(version);
-    if (version == 0) {
-      // Tables in a version-0 file belong to another program: never add ours.
-      const int64_t tables = QueryInt(
-          "SELECT count(*) FROM sqlite_schema WHERE name NOT LIKE 'sqlite_%'",
-          "reading the schema");
-      if (tables > 0) {
-        Throw(
-            "{}: an SQLite database but not an epiloc one (schema version 0 "
-            "and {} tables)",
-            path_, tables);
-      }
-    }
+    if (version == 0) RefuseForeignTables();
     for (const Migration& migration : kMigrations) {
       if (migration.version <= version) continue;
       Exec(migration.sql, fmt::format("applying migration {}", migration.name));

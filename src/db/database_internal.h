@@ -183,6 +183,8 @@ class Database::Impl {
   // Runs a one-off query returning one integer (0 if no row).
   int64_t QueryInt(const char* sql, std::string_view what);
   void CheckNotNewer(int version) const;
+  // Throws Error if a schema-version-0 file holds tables (another program's database).
+  void RefuseForeignTables();
   void Migrate();
   void PrepareStatements();
   sqlite3_stmt* Prepare(const std::string& sql);

@@ -23,6 +23,7 @@ struct Match {
   Geodetic position;
   size_t nearest = 0;
   std::optional<Eigen::Quaterniond> enu_from_cam;  // local ENU at `position`
+  double timestamp_s = 0.0;                        // of the truth sample (frame association)
 };
 
 class TruthMatcher {
@@ -39,11 +40,12 @@ class TruthMatcher {
       const auto it = by_frame_.find(row.frame);
       if (row.frame == kInvalidFrame || it == by_frame_.end()) return std::nullopt;
       const PositionSample& s = truth_.samples[it->second];
-      return Match{s.position, it->second, s.enu_from_cam};
+      return Match{s.position, it->second, s.enu_from_cam, s.timestamp_s};
     }
     const auto sample = truth_.Interpolate(row.timestamp_s, max_gap_s_);
     if (!sample) return std::nullopt;
-    return Match{sample->position, NearestInTime(row.timestamp_s), sample->enu_from_cam};
+    return Match{sample->position, NearestInTime(row.timestamp_s), sample->enu_from_cam,
+                 row.timestamp_s};
   }
 
  private:
@@ -75,8 +77,9 @@ Association ChooseAssociation(const ResultTable& result,
   return truth_frames && result_frames ? Association::kFrame : Association::kTime;
 }
 
+// Milliseconds of a UNIX time, but never hundreds of digits for an absurd one (1.8e308).
 std::string TimeRange(double first, double last) {
-  return fmt::format("{:.3f}..{:.3f} s", first, last);
+  return fmt::format("{:.13g}..{:.13g} s", first, last);
 }
 
 // The ok rows' time span (for the "no overlap" message).
@@ -202,6 +205,13 @@ Evaluation Evaluate(const ResultTable& result,
 
   const TruthMatcher matcher(truth, eval.association, options.max_gap_s);
   std::map<std::string, MethodEvaluation> by_method;
+  // Frame association trusts the frame numbers; times far apart say they are of another drive.
+  struct TimeDisagreement {
+    int64_t rows = 0;
+    double largest_s = 0.0;
+    frame_t frame = kInvalidFrame;
+  };
+  std::map<std::string, TimeDisagreement> disagreements;
   for (const auto& row : result.rows) {
     MethodEvaluation& m = by_method[row.method];
     m.method = row.method;
@@ -214,6 +224,15 @@ Evaluation Evaluate(const ResultTable& result,
       m.unmatched_frames.push_back(row.frame);
       m.unmatched_times_s.push_back(row.timestamp_s);
       continue;
+    }
+    const double time_difference_s = std::abs(row.timestamp_s - match->timestamp_s);
+    if (eval.association == Association::kFrame && time_difference_s > options.max_gap_s) {
+      TimeDisagreement& d = disagreements[row.method];
+      ++d.rows;
+      if (time_difference_s > d.largest_s) {
+        d.largest_s = time_difference_s;
+        d.frame = row.frame;
+      }
     }
     FrameError f;
     f.frame = row.frame;
@@ -254,7 +273,7 @@ Evaluation Evaluate(const ResultTable& result,
       std::vector<std::string> shown;
       for (size_t i = 0; i < std::min(kShown, m.unmatched_frames.size()); ++i) {
         shown.push_back(m.unmatched_frames[i] == kInvalidFrame
-                            ? fmt::format("t={:.3f}", m.unmatched_times_s[i])
+                            ? fmt::format("t={:.13g}", m.unmatched_times_s[i])
                             : std::to_string(m.unmatched_frames[i]));
       }
       std::string warning = fmt::format(
@@ -265,6 +284,13 @@ Evaluation Evaluate(const ResultTable& result,
               : fmt::format("no ground truth within --max-gap-s {} s", options.max_gap_s),
           fmt::join(shown, ", "), m.unmatched_frames.size() > kShown ? ", ..." : "");
       eval.warnings.push_back(std::move(warning));
+    }
+    if (const auto it = disagreements.find(name); it != disagreements.end()) {
+      eval.warnings.push_back(fmt::format(
+          "method {}: {} of {} rows matched by frame number are more than --max-gap-s {} s from "
+          "their ground truth in time (up to {:.6g} s, frame {}): is it the ground truth of this "
+          "drive?",
+          name, it->second.rows, m.ok(), options.max_gap_s, it->second.largest_s, it->second.frame));
     }
     eval.methods.push_back(std::move(m));
   }

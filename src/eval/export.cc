@@ -11,6 +11,7 @@
 
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 #include "epiloc/eval/truth.h"
 
 namespace epiloc {
@@ -60,19 +61,15 @@ std::vector<Eigen::Matrix3d> Orientations(const std::vector<const ResultRow*>& r
   return rotations;
 }
 
-std::ofstream OpenOut(const std::string& path) {
+// Written under a temporary name and renamed by CloseOut: a failure leaves no partial file.
+AtomicOfstream OpenOut(const std::string& path) {
   const fs::path parent = fs::path(path).parent_path();
   std::error_code error;
   if (!parent.empty()) fs::create_directories(parent, error);
-  std::ofstream out(path);
-  if (!out) Throw("{}: cannot open for writing", path);
-  return out;
+  return AtomicOfstream(path);
 }
 
-void CloseOut(std::ofstream& out, const std::string& path) {
-  out.close();
-  if (!out) Throw("{}: write failed", path);
-}
+void CloseOut(AtomicOfstream& out, const std::string& path) { out.Commit(); }
 
 std::string XmlEscape(const std::string& text) {
   std::string out;

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 #include "epiloc/eval/report.h"
 #include "report_internal.h"
 
@@ -140,11 +141,9 @@ void WriteHtmlReport(const Evaluation& eval,
   html += "<p>Plot data and gnuplot scripts: " + Escape(plot_dir.string()) + "</p>\n";
   html += "</body>\n</html>\n";
 
-  std::ofstream out(html_path);
-  if (!out) Throw("{}: cannot open for writing", html_path);
+  AtomicOfstream out(html_path);
   out << html;
-  out.close();
-  if (!out) Throw("{}: write failed", html_path);
+  out.Commit();
 }
 
 }  // namespace epiloc

@@ -9,6 +9,7 @@
 
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 #include "epiloc/eval/report.h"
 #include "report_internal.h"
 
@@ -246,11 +247,9 @@ std::string EvaluationJson(const Evaluation& eval) {
 
 void WriteEvaluationJson(const Evaluation& eval, const std::string& path) {
   CreateParentDirectory(path);
-  std::ofstream out(path);
-  if (!out) Throw("{}: cannot open for writing", path);
+  AtomicOfstream out(path);
   out << EvaluationJson(eval);
-  out.close();
-  if (!out) Throw("{}: write failed", path);
+  out.Commit();
 }
 
 void WriteFrameErrorsCsv(const Evaluation& eval, const std::string& path) {

@@ -22,6 +22,10 @@ void CheckGeodetic(const Geodetic& p, const std::string& where) {
     Throw("{}: longitude {} out of range [-180, 180]", where, p.lon_deg);
   }
   if (!std::isfinite(p.alt_m)) Throw("{}: altitude is not finite", where);
+  if (p.alt_m < kMinAltitudeM || p.alt_m > kMaxAltitudeM) {
+    Throw("{}: altitude {} m out of range [{}, {}]", where, p.alt_m, kMinAltitudeM,
+          kMaxAltitudeM);
+  }
 }
 
 EnuFrame::EnuFrame(const Geodetic& origin)

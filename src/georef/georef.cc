@@ -80,7 +80,7 @@ GeorefResult Georeference(const ImportedTrajectory& trajectory,
   result.anchors_associated = static_cast<int64_t>(associated.size());
   if (associated.size() < 2) {
     Throw(
-        "{}: {} of {} ok anchors fall within the trajectory {} ({} poses, {:.3f} .. {:.3f} s); "
+        "{}: {} of {} ok anchors fall within the trajectory {} ({} poses, {:.13g} .. {:.13g} s); "
         "need two (check the time offset)",
         anchors.path, associated.size(), anchors.anchors.size(), trajectory.path,
         trajectory.poses.size(), trajectory.poses.front().timestamp_s,
@@ -112,7 +112,13 @@ GeorefResult Georeference(const ImportedTrajectory& trajectory,
   result.table.path = trajectory.path;
   result.table.extra_columns = {"scale_m_per_unit"};
   for (const GeorefMethod method : options.methods) {
-    const GeorefTransform transform = MakeTransform(method, pairs, options);
+    const GeorefTransform transform = [&] {
+      try {
+        return MakeTransform(method, pairs, options);
+      } catch (const Error& e) {
+        Throw("{}: {}", anchors.path, e.what());  // name the anchor file the method could not use
+      }
+    }();
     GeorefMethodSummary summary;
     summary.method = method;
     summary.anchors_used = method == GeorefMethod::kPaper ? 2

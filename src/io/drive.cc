@@ -9,6 +9,7 @@
 
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 #include "epiloc/io/frame_reader.h"
 #include "epiloc/io/position_readers.h"
 #include "io_internal.h"
@@ -82,6 +83,13 @@ Camera ReadCamera(const JsonObject& manifest, const std::string& file, bool* col
   const JsonObject c(manifest.At("camera"), file, "camera",
                      {"width", "height", "fx", "fy", "cx", "cy", "distortion", "colour"});
   Camera camera;
+  // Range-checked before the narrowing: 4294967297 must not become 1.
+  for (const char* key : {"width", "height"}) {
+    const int64_t side = c.Integer(key);
+    if (side <= 0 || side >= Camera::kMaxImageSide) {
+      Throw("{}: 'camera.{}' = {} must be in [1, {})", file, key, side, Camera::kMaxImageSide);
+    }
+  }
   camera.width = static_cast<int>(c.Integer("width"));
   camera.height = static_cast<int>(c.Integer("height"));
   camera.fx = c.Number("fx");
@@ -136,7 +144,8 @@ std::vector<FrameRecord> ReadFrames(const JsonObject& manifest,
     if (f.Has("csv")) {
       where = ResolvePath(drive->dir, f.String("csv"));
       frames = ReadFramesCsv(where, drive->dir, true);
-      if (!FileExists(drive->VideoPath())) Throw("{}: video file not found", drive->VideoPath());
+      const std::string problem = FileProblem(drive->VideoPath());
+      if (!problem.empty()) Throw("{}: video file {}", drive->VideoPath(), problem);
     } else {
       where = has_times ? timestamps : drive->VideoPath();
       frames = ReadFramesVideo(drive->VideoPath(), timestamps, fps, start_s);
@@ -278,6 +287,40 @@ Camera ReadCalibrationFile(const std::string& path) {
   return ReadCamera(manifest, path, &colour);
 }
 
+std::vector<std::string> DriveInputPaths(const std::string& dir) {
+  const std::string file = (std::filesystem::path(dir) / "drive.json").string();
+  std::vector<std::string> paths = {file};
+  Json json;
+  try {
+    std::ifstream in(file);
+    if (!in) return paths;
+    json = Json::parse(in);
+  } catch (const Json::exception&) {
+    return paths;
+  }
+  // Every string value of the sections that name files ("format" and "date" never do).
+  std::vector<const Json*> stack;
+  for (const char* key : {"frames", "gnss", "ground_truth", "lidar"}) {
+    if (json.is_object() && json.contains(key)) stack.push_back(&json.at(key));
+  }
+  while (!stack.empty()) {
+    const Json* node = stack.back();
+    stack.pop_back();
+    if (node->is_string()) {
+      const std::string path = ResolvePath(dir, node->get<std::string>());
+      std::error_code error;
+      if (std::filesystem::exists(path, error)) paths.push_back(path);
+    } else if (node->is_object()) {
+      for (const auto& item : node->items()) {
+        if (item.key() != "format" && item.key() != "date") stack.push_back(&item.value());
+      }
+    } else if (node->is_array()) {
+      for (const Json& element : *node) stack.push_back(&element);
+    }
+  }
+  return paths;
+}
+
 void WriteDrive(const Drive& drive, const std::string& dir) {
   std::error_code error;
   std::filesystem::create_directories(dir, error);
@@ -319,10 +362,9 @@ void WriteDrive(const Drive& drive, const std::string& dir) {
     manifest["lidar"] = {{"csv", "lidar.csv"}};
   }
   const std::string file = (std::filesystem::path(dir) / "drive.json").string();
-  std::ofstream out(file);
+  AtomicOfstream out(file);
   out << manifest.dump(2) << '\n';
-  out.close();
-  if (!out) Throw("{}: write failed", file);
+  out.Commit();
 }
 
 }  // namespace epiloc

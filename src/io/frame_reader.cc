@@ -1,5 +1,12 @@
 #include "epiloc/io/frame_reader.h"
 
+#include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+#include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -50,9 +57,63 @@ void CheckImageSize(const cv::Mat& image, const Camera& camera, const std::strin
   }
 }
 
+std::string ImageTruncation(const std::string& data) {
+  static const std::string kPng = "\x89PNG\r\n\x1a\n";
+  if (data.compare(0, kPng.size(), kPng) == 0) {
+    size_t at = kPng.size();
+    while (at + 8 <= data.size()) {
+      const auto byte = [&](size_t i) { return static_cast<uint32_t>(static_cast<uint8_t>(data[i])); };
+      const uint64_t length = byte(at) << 24 | byte(at + 1) << 16 | byte(at + 2) << 8 | byte(at + 3);
+      const std::string type = Printable(data.substr(at + 4, 4));
+      if (at + 12 + length > data.size()) {
+        return fmt::format("truncated PNG (chunk {} ends past the end of the file)", type);
+      }
+      if (type == "IEND") return "";
+      at += 12 + length;
+    }
+    return "truncated PNG (no IEND chunk)";
+  }
+  if (data.size() >= 2 && static_cast<uint8_t>(data[0]) == 0xFF &&
+      static_cast<uint8_t>(data[1]) == 0xD8) {
+    // The end-of-image marker, possibly followed by padding some cameras add.
+    const size_t end = data.find_last_not_of('\0');
+    if (end == std::string::npos || end < 3 || static_cast<uint8_t>(data[end]) != 0xD9 ||
+        static_cast<uint8_t>(data[end - 1]) != 0xFF) {
+      return "truncated JPEG (no end-of-image marker)";
+    }
+    return "";
+  }
+  if (data.empty()) return "empty file";
+  return "";
+}
+
+void QuietLibraryLogging() {
+  // Read by OpenCV's FFmpeg backend when it starts: AV_LOG_QUIET. Kept if the user set it.
+  ::setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+}
+
 cv::Mat ReadImageFile(const std::string& path, const Camera& camera, bool colour) {
+  std::error_code error;
+  const auto status = std::filesystem::status(path, error);
+  if (!std::filesystem::exists(status)) Throw("{}: image file not found", path);
+  if (std::filesystem::is_directory(status)) Throw("{}: is a folder, not an image file", path);
+  if (!std::filesystem::is_regular_file(status)) {
+    Throw("{}: not a regular file (a FIFO or device), not an image file", path);
+  }
+  std::string data;
+  {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) Throw("{}: cannot open image", path);
+    data.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    if (in.bad()) Throw("{}: read error", path);
+  }
+  const std::string truncation = ImageTruncation(data);
+  if (!truncation.empty()) Throw("{}: cannot read image: {}", path, truncation);
   // IMREAD_UNCHANGED keeps 16-bit data, so the conversion below is ours and explicit.
-  cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
+  cv::Mat image = cv::imdecode(cv::Mat(1, static_cast<int>(std::min<size_t>(data.size(), INT32_MAX)),
+                                       CV_8U, data.data()),
+                               cv::IMREAD_UNCHANGED);
   if (image.empty()) Throw("{}: cannot read image", path);
   CheckImageSize(image, camera, path);
   image = ConvertChannels(ToEightBit(image), colour);

@@ -74,7 +74,8 @@ bool FramesCsvRows::Next(FrameRecord* out, bool appended) {
   if (!video_) {
     if (record.image.empty()) Throw("{}: empty image path", csv_.where());
     const std::string image_path = ResolvePath(dir_, record.image);
-    if (!FileExists(image_path)) Throw("{}: image file {} not found", csv_.where(), image_path);
+    const std::string problem = FileProblem(image_path);
+    if (!problem.empty()) Throw("{}: image file {} {}", csv_.where(), image_path, problem);
   }
   last_timestamp_s_ = record.timestamp_s;
   *out = std::move(record);
@@ -154,7 +155,8 @@ std::vector<FrameRecord> ReadFramesVideo(const std::string& video_path,
                                          const std::string& timestamps_path,
                                          double fps,
                                          double start_s) {
-  if (!FileExists(video_path)) Throw("{}: video file not found", video_path);
+  const std::string problem = FileProblem(video_path);
+  if (!problem.empty()) Throw("{}: video file {}", video_path, problem);
   cv::VideoCapture capture(video_path);
   if (!capture.isOpened()) Throw("{}: cannot open video", video_path);
   std::vector<FrameRecord> frames;
@@ -228,7 +230,12 @@ std::vector<LidarScan> ReadLidarCsv(const std::string& path, const std::string& 
             FormatDouble(scan.timestamp_s), FormatDouble(scans.back().timestamp_s));
     }
     const std::string scan_path = ResolvePath(dir, scan.path);
-    if (!FileExists(scan_path)) Throw("{}: scan file {} not found", csv.where(), scan_path);
+    const std::string problem = FileProblem(scan_path);
+    if (!problem.empty()) Throw("{}: scan file {} {}", csv.where(), scan_path, problem);
+    std::error_code error;
+    if (std::filesystem::file_size(scan_path, error) == 0) {
+      Throw("{}: scan file {} is empty (0 bytes)", csv.where(), scan_path);
+    }
     scans.push_back(scan);
   }
   return scans;

@@ -20,6 +20,9 @@ namespace epiloc {
 // `path` if absolute or `dir` empty, else dir/path.
 std::string ResolvePath(const std::string& dir, const std::string& path);
 bool FileExists(const std::string& path);
+// "" for a regular file, else what is wrong: "not found", "is a folder, not a file", "is not a
+// regular file (a FIFO or device)".
+std::string FileProblem(const std::string& path);
 
 // Rotation from the ECEF axes to the local ENU axes at `position`.
 Eigen::Matrix3d EnuFromEcefRotation(const Geodetic& position);
@@ -28,6 +31,8 @@ Eigen::Quaterniond EnuToEnuRotation(const Geodetic& to, const Geodetic& from);
 
 // Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's days_from_civil).
 int64_t DaysFromCivil(int64_t year, int64_t month, int64_t day);
+// Days of a month of the Gregorian calendar (February 29 in leap years); 0 for a bad month.
+int DaysInMonth(int64_t year, int64_t month);
 // Parses "YYYY-MM-DD" into days since 1970-01-01; throws Error "<where>: ..." when malformed.
 int64_t ParseDateDays(const std::string& text, const std::string& where);
 
@@ -68,6 +73,7 @@ class PositionCsvRows {
   bool geodetic_ = false;
   std::optional<EnuFrame> enu_;
   int num_q_ = 0;
+  bool has_status_ = false;  // a result CSV: rows whose status is not ok are skipped
   std::optional<double> last_timestamp_s_;
 };
 

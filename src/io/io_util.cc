@@ -38,6 +38,15 @@ bool FileExists(const std::string& path) {
   return std::filesystem::is_regular_file(path, error);
 }
 
+std::string FileProblem(const std::string& path) {
+  std::error_code error;
+  const auto status = std::filesystem::status(path, error);
+  if (std::filesystem::is_regular_file(status)) return "";
+  if (!std::filesystem::exists(status)) return "not found";
+  if (std::filesystem::is_directory(status)) return "is a folder, not a file";
+  return "is not a regular file (a FIFO or device)";
+}
+
 Eigen::Matrix3d EnuFromEcefRotation(const Geodetic& p) {
   const double lat = p.lat_deg * M_PI / 180.0, lon = p.lon_deg * M_PI / 180.0;
   const double sl = std::sin(lat), cl = std::cos(lat), so = std::sin(lon), co = std::cos(lon);
@@ -61,11 +70,18 @@ int64_t DaysFromCivil(int64_t y, int64_t m, int64_t d) {
   return era * 146097 + doe - 719468;
 }
 
+int DaysInMonth(int64_t year, int64_t month) {
+  static const int kDays[12] = {31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31};
+  if (month < 1 || month > 12) return 0;
+  const bool leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
+  return kDays[month - 1] + (month == 2 && leap ? 1 : 0);
+}
+
 int64_t ParseDateDays(const std::string& text, const std::string& where) {
   int64_t year = 0, month = 0, day = 0;
   if (!(text.size() == 10 && LooksLikeDate(text) && ParseDigits(text, 0, 4, &year) &&
         ParseDigits(text, 5, 2, &month) && ParseDigits(text, 8, 2, &day) && month >= 1 &&
-        month <= 12 && day >= 1 && day <= 31)) {
+        month <= 12 && day >= 1 && day <= DaysInMonth(year, month))) {
     Throw("{}: '{}' is not a date YYYY-MM-DD", where, text);
   }
   return DaysFromCivil(year, month, day);

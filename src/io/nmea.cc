@@ -91,10 +91,11 @@ int64_t ParseRmcDate(const std::string& text, const std::string& where) {
   const int64_t day = std::atoi(text.substr(0, 2).c_str());
   const int64_t month = std::atoi(text.substr(2, 2).c_str());
   const int64_t yy = std::atoi(text.substr(4, 2).c_str());
-  if (day < 1 || day > 31 || month < 1 || month > 12) {
+  const int64_t year = yy < 80 ? 2000 + yy : 1900 + yy;
+  if (day < 1 || month < 1 || month > 12 || day > DaysInMonth(year, month)) {
     Throw("{}: '{}' is not an NMEA date ddmmyy", where, text);
   }
-  return DaysFromCivil(yy < 80 ? 2000 + yy : 1900 + yy, month, day);
+  return DaysFromCivil(year, month, day);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <exception>
 #include <iostream>
 
 #include <fmt/format.h>
@@ -81,17 +82,25 @@ std::string FormatRmc(double timestamp_s,
                   course_deg ? fmt::format("{:.2f}", *course_deg) : "", Date(timestamp_s)));
 }
 
-NmeaWriter::NmeaWriter(const std::string& path) : path_(path == "-" ? "standard output" : path) {
+NmeaWriter::NmeaWriter(const std::string& path)
+    : path_(path == "-" ? "standard output" : path),
+      uncaught_exceptions_(std::uncaught_exceptions()) {
   if (path == "-") {
     out_ = &std::cout;
   } else {
-    file_.open(path);
+    atomic_ = std::make_unique<AtomicFile>(path);
+    file_.open(atomic_->temp_path());
     if (!file_) Throw("{}: cannot open for writing", path);
     out_ = &file_;
   }
 }
 
 NmeaWriter::~NmeaWriter() {
+  if (atomic_ && std::uncaught_exceptions() > uncaught_exceptions_) {
+    if (file_.is_open()) file_.close();
+    atomic_->Discard();  // a failed run leaves no partial file
+    return;
+  }
   try {
     Close();
   } catch (const Error&) {
@@ -120,10 +129,17 @@ void NmeaWriter::Write(double timestamp_s, const Geodetic& position) {
 void NmeaWriter::Close() {
   if (!out_) return;
   out_->flush();
-  const bool ok = static_cast<bool>(*out_);
-  if (file_.is_open()) file_.close();
+  bool ok = static_cast<bool>(*out_);
+  if (file_.is_open()) {
+    file_.close();
+    ok = ok && !file_.fail();
+  }
   out_ = nullptr;
-  if (!ok) Throw("{}: write failed", path_);
+  if (!ok) {
+    if (atomic_) atomic_->Discard();
+    Throw("{}: write failed", path_);
+  }
+  if (atomic_) atomic_->Commit();
 }
 
 }  // namespace epiloc

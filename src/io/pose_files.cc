@@ -10,6 +10,7 @@
 
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 #include "epiloc/io/position_readers.h"
 
 namespace epiloc {
@@ -119,8 +120,8 @@ std::vector<StampedPose> ReadKittiPoses(const std::string& path,
 void WriteTumPoses(const std::vector<StampedPose>& poses,
                    const std::string& path,
                    const std::vector<std::string>& comments) {
-  std::ofstream out(path);
-  if (!out) Throw("{}: cannot write trajectory file", path);
+  AtomicOfstream file(path);
+  std::ofstream& out = file.stream();
   for (const std::string& comment : comments) out << "# " << comment << '\n';
   for (const StampedPose& pose : poses) {
     const Eigen::Quaterniond& q = pose.world_from_cam.rotation;
@@ -129,8 +130,7 @@ void WriteTumPoses(const std::vector<StampedPose>& poses,
                        FormatDouble(t.x()), FormatDouble(t.y()), FormatDouble(t.z()), q.x(), q.y(),
                        q.z(), q.w());
   }
-  out.close();
-  if (!out) Throw("{}: write failed", path);
+  file.Commit();
 }
 
 }  // namespace epiloc

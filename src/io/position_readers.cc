@@ -41,12 +41,17 @@ PositionCsvRows::PositionCsvRows(const std::string& path, const std::optional<Ge
   } else {
     Throw("{}: missing columns lat_deg,lon_deg,alt_m or x_m,y_m,z_m", path);
   }
+  has_status_ = csv_.HasColumn("status");
   for (const char* c : {"qw", "qx", "qy", "qz"}) num_q_ += csv_.HasColumn(c) ? 1 : 0;
   if (num_q_ != 0 && num_q_ != 4) Throw("{}: needs all of the columns qw,qx,qy,qz or none", path);
 }
 
 bool PositionCsvRows::Next(PositionSample* out, bool appended) {
-  if (!(appended ? csv_.NextAppended() : csv_.Next())) return false;
+  // A result CSV used as positions: only rows the method localized are positions; a lost or
+  // rejected row's coordinates are a prediction at best.
+  do {
+    if (!(appended ? csv_.NextAppended() : csv_.Next())) return false;
+  } while (has_status_ && Trim(csv_.Get("status")) != "ok");
   PositionSample sample;
   sample.timestamp_s = csv_.GetDouble("timestamp_s");
   if (geodetic_) {

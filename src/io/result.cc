@@ -1,6 +1,7 @@
 #include "epiloc/io/result.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <map>
 
@@ -33,6 +34,18 @@ const std::vector<std::string>& KnownMethods() {
 }
 
 bool IsKnownMethod(const std::string& name) { return MethodRank(name) < KnownMethods().size(); }
+
+void CheckMethodName(const std::string& name, const std::string& where) {
+  if (name.empty()) Throw("{}: empty method name", where);
+  if (name.size() > 64) Throw("{}: method name longer than 64 characters", where);
+  for (const char c : name) {
+    const auto u = static_cast<unsigned char>(c);
+    if (!(std::isalnum(u) || c == '_' || c == '-' || c == '.' || c == '+' || u >= 0x80)) {
+      Throw("{}: method name '{}' may hold only letters, digits and _ - . +", where,
+            Printable(name));
+    }
+  }
+}
 
 size_t MethodRank(const std::string& name) {
   const auto& methods = KnownMethods();
@@ -94,10 +107,7 @@ ResultTable ReadResultCsv(const std::string& path) {
     ResultRow row;
     row.line = csv.line();
     row.method = csv.Get("method");
-    if (!IsKnownMethod(row.method)) {
-      Throw("{}: unknown method '{}' (known: {})", where, row.method,
-            fmt::join(KnownMethods(), ", "));
-    }
+    CheckMethodName(row.method, where);
     row.status = ParseStatus(csv.Get("status"), where);
     row.timestamp_s = csv.GetDouble("timestamp_s");
     if (!csv.Get("frame").empty()) {

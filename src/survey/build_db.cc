@@ -10,6 +10,7 @@
 #include <optional>
 #include <thread>
 
+#include <fmt/ranges.h>
 #include <opencv2/core.hpp>
 #include <spdlog/spdlog.h>
 
@@ -48,6 +49,17 @@ class ScopedOpenCvThreads {
  private:
   int previous_;
 };
+
+// The route through `points`; its errors name the database and the positions' file.
+Route RouteOf(const std::vector<Eigen::Vector3d>& points,
+              const std::string& db_path,
+              const std::string& positions_source) {
+  try {
+    return Route(points);
+  } catch (const Error& e) {
+    Throw("{}: {} (positions from {})", db_path, e.what(), positions_source);
+  }
+}
 
 // Resolves "auto" to the source it picks, so the database records what was used.
 std::string ResolvePositionChoice(const Drive& drive, const std::string& choice) {
@@ -196,14 +208,14 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
     route_points = db.ReadRoute();
     if (route_points.empty()) {
       for (const FrameJob& job : positioned) route_points.push_back(enu->ToEnu(job.position.position));
-      db.WriteRoute(Route(route_points).points());
+      db.WriteRoute(RouteOf(route_points, db_path, track.source).points());
       route_points = db.ReadRoute();
     }
     drive_record = EnsureDrive(db, drive, CameraRecord(undistorter), position_source,
                                static_cast<int64_t>(positioned.size()));
     transaction.Commit();
   }
-  const Route route(route_points);
+  const Route route = RouteOf(route_points, db_path, track.source);
   summary.drive_id = drive_record.drive_id;
   summary.route_length_m = route.length_m();
 
@@ -234,6 +246,7 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
   std::map<size_t, FrameResult> ready;
   size_t num_written = 0;
   bool stop = false;
+  bool another_build = false;  // the drive's row and the route now belong to that build too
   std::exception_ptr failure;
 
   auto work = [&]() {
@@ -297,6 +310,13 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
         result = std::move(ready.at(k));
         ready.erase(k);
       }
+      if (db.HasFrame(drive_record.drive_id, result.frame.frame)) {
+        // Not there when this run listed its work: another process is adding the same frames.
+        another_build = true;
+        Throw("{}: another build of drive '{}' is running on this database (it added frame {} "
+              "meanwhile); let it finish",
+              db_path, drive.name, result.frame.frame);
+      }
       {
         Database::Transaction transaction(db);
         added_images.push_back(
@@ -305,6 +325,9 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
       }
       summary.frames_added += 1;
       summary.features_added += result.features.size();
+      if (result.features.size() == 0) {
+        summary.frames_without_features.push_back(result.frame.frame);
+      }
       {
         std::lock_guard<std::mutex> lock(mutex);
         num_written = k + 1;
@@ -323,10 +346,22 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
   }
   for (std::thread& worker : workers) worker.join();
   if (failure) {
-    UndoBuild(db, drive_record, previous_record, created_origin, added_images);
+    if (another_build) {
+      UndoBuild(db, drive_record, db.FindDrive(drive.name), false, added_images);
+    } else {
+      UndoBuild(db, drive_record, previous_record, created_origin, added_images);
+    }
     std::rethrow_exception(failure);
   }
 
+  if (!summary.frames_without_features.empty()) {
+    const auto& none = summary.frames_without_features;
+    spdlog::warn("drive '{}': {} of {} frames gave no SIFT features (frames {}{}): black, "
+                 "overexposed or textureless images; nothing can be localized against them",
+                 drive.name, none.size(), summary.frames_added,
+                 fmt::join(none.begin(), none.begin() + std::min<size_t>(none.size(), 5), ", "),
+                 none.size() > 5 ? ", ..." : "");
+  }
   {
     Database::Transaction transaction(db);
     drive_record.complete = true;

@@ -17,6 +17,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "epiloc/core/error.h"
+#include "epiloc/survey/build_db.h"
+
 namespace epiloc {
 namespace {
 
@@ -209,6 +212,92 @@ TEST_F(BuildDbErrors, CalibrationInconsistentWithImageSize) {
                 R"("fx": 600, "fy": 600, "cx": 320, "cy": 240, "width": 640, "height": 480)",
                 R"({"file": "gnss.csv", "format": "csv"})");
   ExpectFailure(drive, "0000.png");
+}
+
+// Issue 18 item 11: absurd values that used to pass (and gave 0 features without a word).
+TEST_F(BuildDbErrors, AbsurdCalibrationIsRefused) {
+  const std::string gnss = R"({"file": "gnss.csv", "format": "csv"})";
+  const struct {
+    const char* name;
+    const char* camera;
+    const char* message;
+  } cases[] = {
+      {"fx_tiny", R"("fx": 1e-300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240)",
+       "focal length"},
+      {"fx_huge", R"("fx": 1e300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240)",
+       "focal length"},
+      {"k1_huge",
+       R"("fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240, "distortion": [1e10, 0, 0, 0, 0])",
+       "k1"},
+      {"width_wraps",
+       R"("fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 4294967297, "height": 240)",
+       "camera.width"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.name);
+    const fs::path drive = CopyDrive(c.name);
+    WriteManifest(drive, c.name, c.camera, gnss);
+    ExpectFailure(drive, "drive.json");
+    ExpectFailure(drive, c.message);
+  }
+}
+
+TEST_F(BuildDbErrors, AltitudeOutOfRange) {
+  const fs::path drive = CopyDrive("bad_alt");
+  ReplaceLine(drive / "gnss.csv", 3, "100.05,49.0,8.4,1e300");
+  ExpectFailure(drive, "gnss.csv:3: altitude");
+}
+
+TEST_F(BuildDbErrors, FramesWithoutFeaturesAreWarnedAbout) {
+  const fs::path drive = CopyDrive("black");
+  for (const int i : {2, 3}) {
+    cv::imwrite((drive / fmt::format("images/{:04d}.png", i)).string(),
+                cv::Mat(240, 320, CV_8UC1, cv::Scalar(0)));
+  }
+  const RunResult result =
+      RunEpiloc(fmt::format("build-db --quiet --no-triangulate --drive {} --db {}",
+                            drive.string(), (root_ / "black.sqlite").string()));
+  EXPECT_EQ(result.exit_code, 0) << result.stderr_text;
+  EXPECT_THAT(result.stderr_text, HasSubstr("2 of 6 frames gave no SIFT features (frames 2, 3)"));
+}
+
+// Issue 18 item 12: a second build of the same drive running at the same time was reported as
+// "already in the database".
+TEST_F(BuildDbErrors, ConcurrentBuildOfTheSameDriveIsNamed) {
+  const fs::path drive = CopyDrive("concurrent");
+  BuildDbOptions options;
+  options.triangulate = false;
+  options.num_threads = 1;
+  bool other_ran = false;
+  const std::string message = [&] {
+    try {
+      BuildDatabase(drive.string(), db_.string(), options, [&](int64_t done, int64_t total) {
+        if (other_ran) return;
+        other_ran = true;  // after our first frame: another process builds the whole drive
+        const RunResult other = RunEpiloc(fmt::format(
+            "build-db --quiet --no-triangulate --drive {} --db {}", drive.string(), db_.string()));
+        EXPECT_EQ(other.exit_code, 0) << other.stderr_text;
+      });
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  }();
+  EXPECT_TRUE(other_ran);
+  EXPECT_THAT(message, HasSubstr("another build of drive 'concurrent' is running"));
+}
+
+TEST_F(BuildDbErrors, IdenticalPositionsNameTheirFile) {
+  const fs::path drive = CopyDrive("standing");
+  std::string gnss = "timestamp_s,lat_deg,lon_deg,alt_m\n";
+  for (int i = 0; i < kFrames + 2; ++i) gnss += fmt::format("{:.3f},49.0,8.4,110.0\n", 99.95 + 0.1 * i);
+  WriteText(drive / "gnss.csv", gnss);
+  const RunResult result = RunEpiloc(fmt::format("build-db --quiet --drive {} --db {}",
+                                                 drive.string(), (root_ / "new.sqlite").string()));
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_EQ(NumLines(result.stderr_text), 1) << result.stderr_text;
+  EXPECT_THAT(result.stderr_text, HasSubstr("two distinct positions"));
+  EXPECT_THAT(result.stderr_text, HasSubstr((drive / "gnss.csv").string()));
 }
 
 TEST_F(BuildDbErrors, LatitudeOutOfRange) {

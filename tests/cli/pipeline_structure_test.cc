@@ -91,7 +91,9 @@ TEST(PipelineStructure, MapVoAnchorGeorefDatabaseLocalize) {
   EXPECT_GE(ok * 10, static_cast<int>(anchors.rows.size()) * 9);
   EXPECT_LE(anchors_max, 3.0);
   EXPECT_LE(piecewise_max, 3.0);
-  EXPECT_EQ(online->evaluated(), static_cast<int64_t>(survey_drive.frames.size()));
+  // The tracker reports a frame only when its evidence agrees (issue 16); on a route as wrong as
+  // these anchors, 17 of 26 frames were (the first waits for a second measurement).
+  EXPECT_GE(online->evaluated() * 2, static_cast<int64_t>(survey_drive.frames.size()));
   EXPECT_LE(online->along_track.mean_abs, 6.0);
 }
 

@@ -1,8 +1,16 @@
 #include "epiloc/cloud/cloud_io.h"
 
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <functional>
 #include <limits>
+#include <new>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -551,6 +559,92 @@ TEST(CloudIo, Las) {
   ExpectError([&] { ReadPointCloud(dir / "text.las"); }, {dir / "text.las", "LASF"});
   ExpectError([&] { WritePointCloud(dir / "out.las", RandomCloud(1, 1, false, false)); },
               {"out.las", "cannot write point clouds as las"});
+}
+
+// Runs `read` in a child process whose address space may grow by at most 256 MB: a reader that
+// allocates what a corrupt header claims dies of bad_alloc there (exit 3) instead of failing
+// with Error (exit 0). Without the limit (sanitizer builds reserve terabytes of shadow memory) it
+// runs `read` in this process.
+int ExitCodeUnderMemoryLimit(const std::function<void()>& read) {
+#if defined(__SANITIZE_ADDRESS__)
+  constexpr bool kLimit = false;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+  constexpr bool kLimit = false;
+#else
+  constexpr bool kLimit = true;
+#endif
+#else
+  constexpr bool kLimit = true;
+#endif
+  const auto classify = [&] {
+    try {
+      read();
+      return 1;  // no error at all
+    } catch (const Error&) {
+      return 0;
+    } catch (const std::bad_alloc&) {
+      return 3;
+    } catch (...) {
+      return 4;
+    }
+  };
+  if (!kLimit) return classify();
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::ifstream status("/proc/self/statm");
+    long pages = 0;
+    status >> pages;
+    const rlim_t limit = static_cast<rlim_t>(pages) * ::sysconf(_SC_PAGESIZE) + (256u << 20);
+    const rlimit rl{limit, limit};
+    ::setrlimit(RLIMIT_AS, &rl);
+    ::_exit(classify());
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 5;
+}
+
+// Issue 18 item 4: sizes from file headers are checked against the file before allocating.
+TEST(CloudIo, HeaderSizesAreCheckedBeforeAllocating) {
+  TempDir dir;
+  // A 1 kB binary_compressed PCD whose size header claims 4 GB (render allocated 4.3 GB).
+  std::string pcd =
+      "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 357913941\nHEIGHT 1\n"
+      "POINTS 357913941\nDATA binary_compressed\n";
+  PutBytes(static_cast<uint32_t>(4294967292u), false, &pcd);
+  PutBytes(static_cast<uint32_t>(4294967292u), false, &pcd);
+  pcd += std::string(1024, '\x01');
+  WriteBytes(dir / "bomb.pcd", pcd);
+  EXPECT_EQ(ExitCodeUnderMemoryLimit([&] { ReadPointCloud(dir / "bomb.pcd"); }), 0);
+  ExpectError([&] { ReadPointCloud(dir / "bomb.pcd"); }, {dir / "bomb.pcd", "truncated"});
+
+  // WIDTH x HEIGHT overflowing 64 bits.
+  WriteText(dir / "wide.pcd",
+            "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 4000000000\nHEIGHT 4000000000\n"
+            "DATA binary\n");
+  ExpectError([&] { ReadPointCloud(dir / "wide.pcd"); }, {dir / "wide.pcd", "corrupt header"});
+
+  // A PLY vertex with a list property claiming 4e9 entries of 8 bytes.
+  std::string ply =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
+      "property float y\nproperty float z\nproperty list uint double extra\nend_header\n";
+  PutBytes(1.0f, false, &ply);
+  PutBytes(2.0f, false, &ply);
+  PutBytes(3.0f, false, &ply);
+  PutBytes(static_cast<uint32_t>(4000000000u), false, &ply);
+  ply += std::string(64, '\0');
+  WriteBytes(dir / "list.ply", ply);
+  EXPECT_EQ(ExitCodeUnderMemoryLimit([&] { ReadPointCloud(dir / "list.ply"); }), 0);
+  ExpectError([&] { ReadPointCloud(dir / "list.ply"); }, {dir / "list.ply", "truncated"});
+
+  // LAS 1.4 with a 64-bit point count beyond int64.
+  const std::vector<std::array<int32_t, 7>> points = {{1, 2, 3, 4, 0, 0, 0}};
+  std::string las = LasFile(4, 6, points);
+  const uint64_t huge = 0xF000000000000000ull;
+  std::memcpy(&las[247], &huge, 8);
+  WriteBytes(dir / "huge.las", las);
+  ExpectError([&] { ReadPointCloud(dir / "huge.las"); }, {dir / "huge.las", "corrupt LAS header"});
 }
 
 TEST(CloudIo, ChunkedReadingMatchesWholeRead) {

@@ -133,6 +133,25 @@ TEST_F(CsvFileTest, ReadsRowsSkippingCommentsAndBlankLines) {
   EXPECT_FALSE(reader.Next());
 }
 
+TEST_F(CsvFileTest, AcceptsUtf8ByteOrderMark) {
+  // Spreadsheets save "CSV UTF-8" with a BOM; it must not become part of the first column name.
+  CsvReader reader(Write("frames.csv", "\xEF\xBB\xBF" "frame,timestamp_s\n3,1.5\n"));
+  EXPECT_THAT(reader.header(), ElementsAre("frame", "timestamp_s"));
+  reader.RequireColumns({"frame"});
+  ASSERT_TRUE(reader.Next());
+  EXPECT_EQ(reader.GetInt("frame"), 3);
+
+  CsvReader commented(Write("gnss.csv", "\xEF\xBB\xBF# comment\nframe\n4\n"));
+  EXPECT_THAT(commented.header(), ElementsAre("frame"));
+  ASSERT_TRUE(commented.Next());
+  EXPECT_EQ(commented.GetInt("frame"), 4);
+
+  // Only at the start of the file: elsewhere the bytes are data.
+  CsvReader later(Write("later.csv", "name\n\xEF\xBB\xBFx\n"));
+  ASSERT_TRUE(later.Next());
+  EXPECT_EQ(later.Get("name"), "\xEF\xBB\xBFx");
+}
+
 TEST_F(CsvFileTest, WrongFieldCountNamesFileAndLine) {
   const std::string path = Write("bad.csv", "a,b\n1,2\n# comment\n1,2,3\n");
   CsvReader reader(path);

@@ -1,5 +1,14 @@
 // The database as a file: migrations from older versions, refusals (newer schema, not SQLite,
 // missing directory, locked), read-only mode, the retrieval tables.
+#include <sched.h>
+#include <sys/mount.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+#include <functional>
+
 #include "db_test_util.h"
 
 namespace epiloc {
@@ -59,9 +68,91 @@ TEST_F(DatabaseFileTest, FailedMigrationLeavesTheFileUnchanged) {
     raw.Exec("CREATE TABLE photos (id INTEGER PRIMARY KEY)");
   }
   ExpectError([&] { Database db(path); }, {path, "not an epiloc one"});
+  // Issue 18 item 12: the other program's file is not switched to WAL, no -wal/-shm beside it.
+  EXPECT_FALSE(fs::exists(path + "-wal"));
+  EXPECT_FALSE(fs::exists(path + "-shm"));
   RawConnection raw(path);
   EXPECT_EQ(raw.QueryInt("PRAGMA user_version"), 0);
   EXPECT_EQ(raw.QueryInt("SELECT count(*) FROM sqlite_schema"), 1);
+  EXPECT_EQ(raw.QueryText("PRAGMA journal_mode"), "delete");
+}
+
+TEST_F(DatabaseFileTest, NotADatabaseLeavesNoFilesBeside) {
+  const std::string path = PathOf("notes.txt");
+  { std::ofstream(path) << "just some text, long enough to be read as a header............\n"; }
+  ExpectError([&] { Database db(path); }, {path, "not an SQLite database"});
+  ExpectError([&] { Database db(path, Database::Mode::kReadOnly); }, {path});
+  EXPECT_FALSE(fs::exists(path + "-wal"));
+  EXPECT_FALSE(fs::exists(path + "-shm"));
+  EXPECT_FALSE(fs::exists(path + "-journal"));
+}
+
+// Runs `check` in a child process that sees `dir` read-only (a read-only bind mount in a private
+// mount namespace when run as root, whom permissions do not stop; else chmod 0555). Returns the
+// child's exit code, or -1 when the read-only view cannot be set up (the test is skipped).
+int RunWithReadOnlyFolder(const fs::path& dir, const std::function<int()>& check) {
+  const bool root = ::geteuid() == 0;
+  if (!root) fs::permissions(dir, fs::perms(0555));
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (root) {
+      if (::unshare(CLONE_NEWNS) != 0 ||
+          ::mount(nullptr, "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0 ||
+          ::mount(dir.c_str(), dir.c_str(), nullptr, MS_BIND, nullptr) != 0 ||
+          ::mount(nullptr, dir.c_str(), nullptr, MS_BIND | MS_REMOUNT | MS_RDONLY, nullptr) != 0) {
+        ::_exit(77);
+      }
+    }
+    int code = 0;
+    try {
+      code = check();
+    } catch (...) {
+      code = 99;
+    }
+    ::_exit(code);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  if (!root) fs::permissions(dir, fs::perms(0755));
+  const int code = WIFEXITED(status) ? WEXITSTATUS(status) : 98;
+  return code == 77 ? -1 : code;
+}
+
+TEST_F(DatabaseFileTest, ReadsADatabaseOnReadOnlyMedia) {
+  // Issue 18 item 7: reading failed with "attempt to write a readonly database" (a WAL reader
+  // creates <db>-shm beside the file).
+  const fs::path media = dir_ / "media";
+  fs::create_directories(media);
+  const std::string path = (media / "route.sqlite").string();
+  Sample sample;
+  {
+    Database db(path);
+    sample = WriteSample(&db, 3);
+  }
+  ASSERT_FALSE(fs::exists(path + "-shm"));
+  const int code = RunWithReadOnlyFolder(media, [&] {
+    try {
+      const Database db(path, Database::Mode::kReadOnly);
+      if (db.NumFrames() != static_cast<int64_t>(sample.frames.size())) return 1;
+    } catch (const Error& e) {
+      std::fprintf(stderr, "read-only open: %s\n", e.what());
+      return 2;
+    }
+    try {
+      Database db(path);
+      return 3;  // a write open must be refused
+    } catch (const Error& e) {
+      const std::string message = e.what();
+      if (message.find("read-only") == std::string::npos ||
+          message.find("writes to it") == std::string::npos) {
+        std::fprintf(stderr, "write open: %s\n", e.what());
+        return 4;
+      }
+    }
+    return 0;
+  });
+  if (code < 0) GTEST_SKIP() << "cannot make a read-only folder here";
+  EXPECT_EQ(code, 0);
 }
 
 TEST_F(DatabaseFileTest, RefusesANewerSchemaVersion) {

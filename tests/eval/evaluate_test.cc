@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "epiloc/db/database.h"
@@ -151,6 +152,41 @@ TEST(Evaluate, FrameAssociationMatchesByNumber) {
   ASSERT_EQ(m.evaluated(), 1);
   EXPECT_NEAR(m.frames[0].along_track_m, 0.5, 1e-6);
   EXPECT_EQ(m.unmatched_frames, (std::vector<frame_t>{9}));
+}
+
+// Issue 18 item 9: another tool's method name is evaluated; frame numbers matching rows whose
+// times are days apart get a warning.
+TEST(Evaluate, AnyMethodNameAndTimesDisagreeingUnderFrameAssociation) {
+  ResultTable result;
+  result.path = "r.csv";
+  result.rows.push_back(OkRow("orb_slam3", 1, 1, V(5, 0, 0)));
+  result.rows.push_back(OkRow("orb_slam3", 2, 2, V(10, 0, 0)));
+  result.rows.push_back(OkRow("pnp", 1, 1, V(5, 0, 0)));
+  result.rows.push_back(OkRow("pnp", 2, 2 + 3 * 86400.0, V(10, 0, 0)));  // three days later
+  const Evaluation eval = Evaluate(result, LTruth(true), LRoute(), EvaluateOptions());
+  EXPECT_EQ(eval.association, Association::kFrame);
+  ASSERT_EQ(eval.methods.size(), 2u);
+  EXPECT_EQ(eval.methods[0].method, "pnp");  // known methods first
+  EXPECT_EQ(eval.methods[1].method, "orb_slam3");
+  EXPECT_EQ(eval.methods[1].evaluated(), 2);
+  std::string warnings;
+  for (const std::string& w : eval.warnings) warnings += w + "\n";
+  EXPECT_THAT(warnings, ::testing::HasSubstr("method pnp: 1 of 2 rows matched by frame number"));
+  EXPECT_THAT(warnings, ::testing::HasSubstr("259200 s, frame 2"));
+  EXPECT_THAT(warnings, ::testing::Not(::testing::HasSubstr("method orb_slam3")));
+}
+
+TEST(Evaluate, AbsurdTimesGiveShortMessages) {
+  // Issue 18 item 12: DBL_MAX seconds were printed with 309 digits.
+  ResultTable result;
+  result.path = "r.csv";
+  result.rows.push_back(OkRow("pnp", kInvalidFrame, 1.7976931348623157e308, V(5, 0, 0)));
+  EvaluateOptions by_time;
+  by_time.association = Association::kTime;
+  const std::string message =
+      ErrorOf([&] { Evaluate(result, LTruth(false), LRoute(), by_time); });
+  EXPECT_THAT(message, ::testing::HasSubstr("1.797693134862e+308"));
+  EXPECT_LT(message.size(), 300u) << message;
 }
 
 TEST(Evaluate, FailsWithoutOverlap) {

@@ -116,6 +116,19 @@ TEST(LoadDrive, FolderWithTimestampsAndAllSources) {
   EXPECT_EQ(drive.lidar[0].sensor_position.alt_m, 101.5);
 }
 
+// Issue 18 item 12: an empty scan file was counted as a scan; a folder named as an image was
+// "not found".
+TEST(LoadDrive, EmptyScansAndFoldersAsImagesAreNamed) {
+  DriveDir dir;
+  WriteText(dir / "scans/0.bin", "");
+  ExpectError([&] { LoadDrive(dir.str()); }, {"lidar.csv:2", "scans/0.bin", "empty (0 bytes)"});
+  WriteText(dir / "scans/0.bin", "0123456789abcdef");
+  WriteText(dir / "frames.csv", "frame,timestamp_s,image\n0,100.0,images\n");
+  dir.manifest()["frames"] = {{"csv", "frames.csv"}};
+  dir.Save();
+  ExpectError([&] { LoadDrive(dir.str()); }, {"frames.csv:2", "is a folder, not a file"});
+}
+
 TEST(LoadDrive, FolderWithFpsAndUnnumberedNames) {
   DriveDir dir;
   dir.manifest()["frames"] = {{"folder", "images"}, {"fps", 4.0}, {"start_s", 10.0}};

@@ -1,5 +1,9 @@
 #include "epiloc/io/frame_reader.h"
 
+#include <sys/stat.h>
+
+#include <fstream>
+#include <iterator>
 #include <thread>
 
 #include <fmt/format.h>
@@ -86,10 +90,42 @@ TEST(FrameReader, ReportsMissingCorruptAndWrongSizeImages) {
   WriteImage(dir / "small.png", Pattern(kWidth - 2, kHeight, CV_8UC1));
   WriteText(dir / "corrupt.png", "this is not a PNG");
   const FrameReader reader(ImageDrive(dir, {"absent.png", "corrupt.png", "small.png"}));
-  ExpectError([&] { reader.ReadGrey(0); }, {dir / "absent.png: cannot read image"});
+  ExpectError([&] { reader.ReadGrey(0); }, {dir / "absent.png: image file not found"});
   ExpectError([&] { reader.ReadColour(1); }, {dir / "corrupt.png: cannot read image"});
   ExpectError([&] { reader.ReadGrey(2); }, {dir / "small.png", "38x30", "40x30"});
   ExpectError([&] { reader.ReadGrey(3); }, {"out of range"});
+}
+
+// A truncated PNG or JPEG is reported in one line without the decoder libraries printing on
+// stderr; a folder or FIFO given as an image is named as such, not "not found".
+TEST(FrameReader, TruncatedImagesFoldersAndFifos) {
+  TempDir dir;
+  WriteImage(dir / "full.png", Pattern(kWidth, kHeight, CV_8UC1));
+  WriteImage(dir / "full.jpg", Pattern(kWidth, kHeight, CV_8UC3));
+  std::ifstream png_in(dir / "full.png", std::ios::binary);
+  const std::string png((std::istreambuf_iterator<char>(png_in)), std::istreambuf_iterator<char>());
+  std::ifstream jpg_in(dir / "full.jpg", std::ios::binary);
+  const std::string jpg((std::istreambuf_iterator<char>(jpg_in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(ImageTruncation(png), "");
+  EXPECT_EQ(ImageTruncation(jpg), "");
+  EXPECT_EQ(ImageTruncation(jpg + std::string(16, '\0')), "");  // padded
+  EXPECT_THAT(ImageTruncation(png.substr(0, png.size() / 2)), ::testing::HasSubstr("truncated PNG"));
+  EXPECT_THAT(ImageTruncation(png.substr(0, png.size() - 12)), ::testing::HasSubstr("IEND"));
+  EXPECT_THAT(ImageTruncation(jpg.substr(0, jpg.size() - 100)),
+              ::testing::HasSubstr("truncated JPEG"));
+  EXPECT_EQ(ImageTruncation("P5 not a png"), "");  // other formats are left to the decoder
+
+  WriteText(dir / "half.png", png.substr(0, png.size() / 2));
+  const Camera camera = ImageDrive(dir, {}).camera;
+  ::testing::internal::CaptureStderr();
+  ExpectError([&] { ReadImageFile(dir / "half.png", camera, false); },
+              {dir / "half.png", "truncated PNG"});
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  std::filesystem::create_directories(dir / "folder.png");
+  ExpectError([&] { ReadImageFile(dir / "folder.png", camera, false); }, {"is a folder"});
+  ASSERT_EQ(::mkfifo((dir / "fifo.png").c_str(), 0600), 0);
+  ExpectError([&] { ReadImageFile(dir / "fifo.png", camera, false); }, {"FIFO"});
+  ExpectError([&] { ReadImageFile(dir / "absent.png", camera, false); }, {"not found"});
 }
 
 TEST(FrameReader, ContentHashIsTheFileHash) {

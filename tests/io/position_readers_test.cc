@@ -28,6 +28,14 @@ TEST(Timestamps, ParsesKittiFormatWithFullPrecision) {
   ExpectError([] { ParseTimestamp("2011-13-26 13:04:32", "f.txt:3"); }, {"f.txt:3"});
   ExpectError([] { ParseTimestamp("2011-09-26 13:04:32.5x", "f.txt:4"); }, {"f.txt:4"});
   ExpectError([] { ParseTimestamp("abc", "f.txt:5"); }, {"f.txt:5"});
+  // Issue 18 item 12: days beyond the month's end were accepted (2023-02-30 = March 2nd).
+  ExpectError([] { ParseTimestamp("2023-02-30 00:00:00", "f.txt:6"); }, {"f.txt:6", "2023-02-30"});
+  ExpectError([] { ParseTimestamp("2023-02-29 00:00:00", "f.txt:7"); }, {"f.txt:7"});
+  ExpectError([] { ParseTimestamp("2023-04-31 00:00:00", "f.txt:8"); }, {"f.txt:8"});
+  EXPECT_NEAR(ParseTimestamp("2024-02-29 00:00:00", "x") - ParseTimestamp("2024-02-28 00:00:00", "x"),
+              86400.0, 0.0);
+  EXPECT_NEAR(ParseTimestamp("2000-02-29 00:00:00", "x"), 951782400.0, 0.0);
+  ExpectError([] { ParseTimestamp("1900-02-29 00:00:00", "f.txt:9"); }, {"f.txt:9"});
 }
 
 TEST(Timestamps, ReadsFileAndRejectsBackwards) {
@@ -74,6 +82,23 @@ TEST(PositionCsv, ReadsLocalXyzAboutOrigin) {
   EXPECT_LT((enu.ToEnu(track.samples[0].position)).norm(), 1e-6);
   EXPECT_LT((enu.ToEnu(track.samples[1].position) - Eigen::Vector3d(10, -5, 2)).norm(), 1e-6);
   ExpectError([&] { ReadPositionCsv(dir / "p.csv", std::nullopt); }, {dir / "p.csv", "origin"});
+}
+
+TEST(PositionCsv, ResultCsvGivesOnlyOkRows) {
+  // build-db --positions RESULT.csv: a lost row (its coordinates a stale guess or empty) must not
+  // become a survey position.
+  TempDir dir;
+  WriteText(dir / "r.csv",
+            "frame,timestamp_s,lat_deg,lon_deg,alt_m,s_m,db_frame,method,status\n"
+            "0,0.0,49.0,8.0,100,0,0,online,ok\n"
+            "1,0.1,10.0,10.0,100,,,online,lost\n"
+            "2,0.2,,,,,,online,rejected\n"
+            "3,0.3,49.0001,8.0,100,11,3,online,ok\n");
+  const PositionTrack track = ReadPositionCsv(dir / "r.csv", std::nullopt);
+  ASSERT_EQ(track.samples.size(), 2u);
+  EXPECT_EQ(track.samples[0].frame, 0);
+  EXPECT_EQ(track.samples[1].frame, 3);
+  EXPECT_NEAR(track.samples[1].position.lat_deg, 49.0001, 1e-12);
 }
 
 TEST(PositionCsv, RejectsBadLines) {
@@ -177,6 +202,8 @@ TEST(Nmea, RejectsMalformedSentences) {
   WriteText(dir / "back.nmea", Nmea("GPRMC,123519,A,4807.038,N,01131.000,E,0,0,230394,,") +
                                    Nmea("GPRMC,123518,A,4807.038,N,01131.000,E,0,0,230394,,"));
   ExpectError([&] { ReadNmea(dir / "back.nmea"); }, {dir / "back.nmea:2", "backwards"});
+  WriteText(dir / "feb30.nmea", Nmea("GPRMC,123519,A,4807.038,N,01131.000,E,0,0,300223,,"));
+  ExpectError([&] { ReadNmea(dir / "feb30.nmea"); }, {dir / "feb30.nmea:1", "300223"});
 }
 
 // Writes a KITTI-style OXTS folder with `n` records 0.1 s apart, moving north-east.

@@ -95,6 +95,14 @@ TEST(ResultCsv, StatusAndMethodNames) {
   EXPECT_EQ(MethodRank("gps"), 0u);
 }
 
+TEST(ResultCsv, AcceptsAnyMethodName) {
+  TempDir dir;
+  WriteText(dir / "other.csv", "frame,timestamp_s,lat_deg,lon_deg,alt_m,s_m,db_frame,method,status\n"
+                               "1,0,49,8,0,,,ORB-SLAM3,ok\n1,0,49,8,0,,,gps,ok\n2,0.1,49,8,0,,,sift,lost\n");
+  const ResultTable table = ReadResultCsv(dir / "other.csv");
+  EXPECT_EQ(table.Methods(), (std::vector<std::string>{"gps", "ORB-SLAM3", "sift"}));
+}
+
 // Each bad file gives an error naming the file and line.
 TEST(ResultCsv, RejectsBadInputNamingFileAndLine) {
   TempDir dir;
@@ -107,8 +115,8 @@ TEST(ResultCsv, RejectsBadInputNamingFileAndLine) {
   expect("missing.csv",
          "frame,timestamp_s,lat_deg,lon_deg,alt_m,s_m,db_frame,method\n1,2,3,4,5,,,gps\n",
          {dir / "missing.csv:1", "missing column 'status'"});
-  expect("method.csv", kHeader + "\n1,0,49,8,0,,,gps,ok\n2,0.1,49,8,0,,,sift,ok\n",
-         {dir / "method.csv:3", "unknown method 'sift'", "gps, nearest, dtw_fixed"});
+  expect("method.csv", kHeader + "\n1,0,49,8,0,,,gps,ok\n2,0.1,49,8,0,,,\"a b\",ok\n",
+         {dir / "method.csv:3", "method name 'a b'"});
   expect("status.csv", kHeader + "\n1,0,49,8,0,,,gps,fine\n",
          {dir / "status.csv:2", "unknown status 'fine'", "ok, lost, off_route"});
   expect("nan.csv", kHeader + "\n1,0,nan,8,0,,,gps,ok\n", {dir / "nan.csv:2", "lat_deg"});

@@ -24,8 +24,18 @@ struct Camera {
   bool HasDistortion() const;
   Eigen::Matrix3d K() const;
 
+  // Sane bounds checked by Check(): a side below kMaxImageSide pixels, a focal length between
+  // kMinFocalPerSide and kMaxFocalPerSide times the longer side, |k1|, |k2|, |k3| up to
+  // kMaxRadialDistortion and |p1|, |p2| up to kMaxTangentialDistortion.
+  static constexpr int kMaxImageSide = 100000;
+  static constexpr double kMinFocalPerSide = 0.02;
+  static constexpr double kMaxFocalPerSide = 200.0;
+  static constexpr double kMaxRadialDistortion = 1000.0;
+  static constexpr double kMaxTangentialDistortion = 1.0;
+
   // Throws Error (prefixed with `where`) if a value is invalid: non-positive size or focal
-  // length, non-finite value, principal point outside the image.
+  // length, non-finite value, principal point outside the image, a value beyond the sane bounds
+  // above.
   void Check(const std::string& where) const;
 
   // Projects a point in the camera frame (z > 0) to distorted pixel coordinates.

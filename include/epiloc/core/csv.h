@@ -2,15 +2,18 @@
 //
 // Comma-separated, first non-comment line is the header, '#' starts a comment line, fields may be
 // double-quoted ("a,b" and "" for a quote). Blank lines are skipped. Every row must have as many
-// fields as the header.
+// fields as the header. A UTF-8 byte order mark at the start of the file is ignored.
 #pragma once
 
 #include <cstdint>
 #include <fstream>
+#include <memory>
 #include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
+
+#include "epiloc/core/output_file.h"
 
 namespace epiloc {
 
@@ -64,6 +67,9 @@ class CsvReader {
 };
 
 // Writes a header and rows; values are formatted by the caller. Throws Error on I/O failure.
+// A file is written under a temporary name beside `path` and renamed to `path` by Close() (or the
+// destructor), so it appears complete or not at all; destroyed while an exception propagates, the
+// writer leaves no file. Standard output gets the rows as they are written.
 class CsvWriter {
  public:
   // Opens `path` ("-": standard output) and writes the header.
@@ -72,12 +78,15 @@ class CsvWriter {
   // Hands the rows written so far to the file (or the reader of standard output); throws Error
   // if writing failed.
   void Flush();
-  // Flushes and checks the stream; called by the destructor too (which does not throw).
+  // Flushes and checks the stream, then renames the file into place; called by the destructor too
+  // (which does not throw, and discards the file when destroyed by an exception).
   void Close();
   ~CsvWriter();
 
  private:
   std::string path_;
+  std::unique_ptr<AtomicFile> atomic_;  // null for standard output
+  int uncaught_exceptions_;             // at construction: tells unwinding from a normal end
   std::ofstream file_;
   std::ostream* out_ = nullptr;  // file_ or std::cout; null once closed
   size_t num_columns_;

@@ -20,6 +20,11 @@ class Error : public std::runtime_error {
 // "path:line" (line >= 1) or "path" (line < 1): the prefix of a message about a place in a file.
 std::string Where(const std::string& path, int64_t line = 0);
 
+// `text` (bytes from an input file) made safe to quote in a one-line message: control bytes
+// (newline, escape sequences that would drive the terminal, ...) become \xNN, a backslash stays
+// one; at most `max_bytes` bytes are kept ("..." marks a cut).
+std::string Printable(const std::string& text, size_t max_bytes = 200);
+
 // Throws Error with a formatted message.
 template <typename... Args>
 [[noreturn]] void Throw(fmt::format_string<Args...> format, Args&&... args) {

@@ -23,7 +23,12 @@ struct Geodetic {
 
 // True if lat is in [-90, 90], lon in [-180, 180] and all three are finite.
 bool IsValidGeodetic(const Geodetic& position);
-// Throws Error "<where>: latitude 123 out of range [-90, 90]" (or the longitude) if invalid.
+// Ellipsoidal heights a road position can have, metres (the Dead Sea shore is at about -400 m,
+// the highest roads below 6000 m); outside them a value is an error in the data.
+constexpr double kMinAltitudeM = -1000.0;
+constexpr double kMaxAltitudeM = 20000.0;
+// Throws Error "<where>: latitude 123 out of range [-90, 90]" (or the longitude, or an altitude
+// outside [kMinAltitudeM, kMaxAltitudeM]) if invalid.
 void CheckGeodetic(const Geodetic& position, const std::string& where);
 
 // A local tangent-plane frame: x east, y north, z up, metres, origin at `origin`.

@@ -106,6 +106,13 @@ Drive LoadDrive(const std::string& dir);
 // missing or malformed calibration.
 Camera ReadCalibrationFile(const std::string& path);
 
+// The existing files and folders a drive directory's manifest names: `dir`/drive.json first, then
+// the frames CSV or image folder, video, timestamps, position files and folders, LiDAR CSV,
+// resolved against `dir`; for commands that must not write over their inputs. Reads only the
+// manifest and checks nothing: a missing or malformed one gives drive.json alone (the loader
+// reports it).
+std::vector<std::string> DriveInputPaths(const std::string& dir);
+
 // Writes a drive in the canonical layout: drive.json, frames.csv, gnss.csv, ground_truth.csv,
 // lidar.csv (the files present in the Drive), with full double precision, so that
 // LoadDrive(dir) gives back the same drive. Image, video and scan paths are written as given when

@@ -63,8 +63,18 @@ class FrameReader {
 std::string FrameContentHash(const Drive& drive, size_t index);
 
 // One image file as FrameReader reads it: 8-bit, grey (CV_8UC1) or BGR (`colour`), checked
-// against the calibration's size. Throws Error as FrameReader does.
+// against the calibration's size. Throws Error as FrameReader does; a truncated PNG or JPEG is
+// reported without handing it to the decoder (whose libraries print on stderr).
 cv::Mat ReadImageFile(const std::string& path, const Camera& camera, bool colour);
+
+// "" if `data` (the bytes of an image file) is a complete PNG or JPEG or another format; else why
+// not: "truncated PNG (chunk IDAT ends past the end of the file)", "truncated JPEG (no end
+// marker)", ...
+std::string ImageTruncation(const std::string& data);
+
+// Silences the libraries' own logging on stderr (OpenCV's log, FFmpeg's through OpenCV) so that
+// an error is the one line of its epiloc::Error. Call before the first video is opened.
+void QuietLibraryLogging();
 
 // Throws Error "<path>: image size WxH differs from the calibration's WxH" unless `image` has the
 // camera's size.

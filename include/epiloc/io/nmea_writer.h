@@ -10,9 +10,11 @@
 #pragma once
 
 #include <fstream>
+#include <memory>
 #include <optional>
 #include <string>
 
+#include "epiloc/core/output_file.h"
 #include "epiloc/geo/geodetic.h"
 
 namespace epiloc {
@@ -30,8 +32,9 @@ std::string FormatRmc(double timestamp_s,
                       std::optional<double> course_deg,
                       const std::string& talker = "GP");
 
-// Writes RMC + GGA per epoch (RMC first: it dates the epoch) to a file ("-": standard output),
-// flushed per epoch.
+// Writes RMC + GGA per epoch (RMC first: it dates the epoch) to a file ("-": standard output,
+// flushed per epoch). A file is written under a temporary name and renamed into place by Close()
+// or the destructor; destroyed by an exception, the writer leaves no file.
 class NmeaWriter {
  public:
   explicit NmeaWriter(const std::string& path);
@@ -45,6 +48,8 @@ class NmeaWriter {
 
  private:
   std::string path_;
+  std::unique_ptr<AtomicFile> atomic_;  // a file is renamed into place by Close()
+  int uncaught_exceptions_;             // at construction: tells unwinding from a normal end
   std::ofstream file_;
   std::ostream* out_ = nullptr;
   std::optional<double> last_time_s_;

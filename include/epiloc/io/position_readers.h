@@ -37,7 +37,8 @@ std::string PositionFormatName(PositionFormat format);
 // x_m,y_m,z_m (metres east/north/up about `origin`, which is then required); optionally
 // qw,qx,qy,qz (all four, or all empty: enu_from_cam, rotation from the camera frame x right,
 // y down, z forward to the local ENU frame at the sample; normalised if within 1e-3 of unit
-// length, else an error) and frame (integer, empty = none).
+// length, else an error) and frame (integer, empty = none). A file with a status column (a result
+// CSV) gives only its rows whose status is ok.
 PositionTrack ReadPositionCsv(const std::string& path, const std::optional<Geodetic>& origin);
 // Writes the canonical position CSV: timestamp_s,lat_deg,lon_deg,alt_m,qw,qx,qy,qz,frame with
 // full double precision (empty fields for a missing orientation or frame).

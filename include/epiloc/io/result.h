@@ -12,7 +12,8 @@
 //                empty; informative: `evaluate` projects lat/lon onto its evaluation route so that
 //                every method is measured the same way)
 //   db_frame     the matched database frame (image id; empty = none)
-//   method       one of KnownMethods() (e.g. gps, dtw_fixed, pnp)
+//   method       any name (letters, digits, _ - . +; another tool's output keeps its own); the
+//                KnownMethods() (e.g. gps, dtw_fixed, pnp) are listed first in their order
 //   status       one of ok | lost | off_route | rejected | skipped (see ResultStatus)
 // Optional columns with a meaning: qw,qx,qy,qz (all four or none; per row all set or all empty):
 // enu_from_cam, rotation from the camera frame (x right, y down, z forward) to the local ENU frame
@@ -41,6 +42,9 @@ namespace epiloc {
 // tools/compare_colmap.sh). The one place they are listed.
 const std::vector<std::string>& KnownMethods();
 bool IsKnownMethod(const std::string& name);
+// Throws Error "<where>: method name ..." unless `name` is 1-64 letters, digits, _ - . + (or
+// UTF-8 letters): any tool's method is accepted, as long as it is safe in file names and reports.
+void CheckMethodName(const std::string& name, const std::string& where);
 // Position of a method in KnownMethods() (for sorting); KnownMethods().size() if unknown.
 size_t MethodRank(const std::string& name);
 
@@ -84,7 +88,7 @@ struct ResultTable {
 };
 
 // Reads a result CSV. Throws Error naming the file and line for a missing required column (line
-// of the header), an unknown method or status (listing the known ones), a field that does not
+// of the header), a malformed method name, an unknown status (listing the known ones), a field that does not
 // parse (NaN and inf included), an ok row without position, a frame repeated within a method,
 // lat/lon out of range, or a file without rows.
 ResultTable ReadResultCsv(const std::string& path);

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "epiloc/core/progress.h"
 #include "epiloc/core/types.h"
@@ -41,6 +42,9 @@ struct BuildDbSummary {
   int64_t frames_already_present = 0;   // from an earlier (interrupted) build
   int64_t frames_added = 0;
   int64_t features_added = 0;
+  // Frames added without a single SIFT feature (black, overexposed or textureless images: no
+  // query frame can be placed at them); warned about.
+  std::vector<frame_t> frames_without_features;
   double seconds = 0.0;
   double route_length_m = 0.0;
   bool triangulated = false;          // the triangulation step ran

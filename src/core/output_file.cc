@@ -1,0 +1,144 @@
+#include "epiloc/core/output_file.h"
+
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <system_error>
+
+#include "epiloc/core/error.h"
+
+namespace epiloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path FolderOf(const std::string& path) {
+  const fs::path parent = fs::path(path).parent_path();
+  return parent.empty() ? fs::path(".") : parent;
+}
+
+std::string TempName(const std::string& path) {
+  static std::atomic<unsigned> counter{0};
+  const fs::path p(path);
+  return (FolderOf(path) / ("." + p.filename().string() + ".tmp-" + std::to_string(getpid()) +
+                            "-" + std::to_string(counter++) + p.extension().string()))
+      .string();
+}
+
+fs::path Resolved(const std::string& path) {
+  std::error_code ec;
+  return fs::weakly_canonical(fs::absolute(path, ec), ec).lexically_normal();
+}
+
+// True if `path` lies inside the folder `folder` (after resolving both).
+bool IsInside(const std::string& path, const std::string& folder) {
+  const fs::path p = Resolved(path);
+  const fs::path f = Resolved(folder);
+  auto pi = p.begin();
+  for (auto fi = f.begin(); fi != f.end(); ++fi, ++pi) {
+    if (fi->empty()) continue;  // the trailing "" of "dir/"
+    if (pi == p.end() || *pi != *fi) return false;
+  }
+  return pi != p.end();
+}
+
+}  // namespace
+
+bool SameFile(const std::string& a, const std::string& b) {
+  if (a.empty() || b.empty()) return false;
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec)) {
+    const bool same = fs::equivalent(a, b, ec);
+    if (!ec) return same;
+  }
+  return Resolved(a) == Resolved(b);
+}
+
+void CheckWritable(const std::string& path, const std::string& option) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) Throw("{} {}: is a folder, expected a file name", option, path);
+  const fs::path folder = FolderOf(path);
+  if (!fs::is_directory(folder, ec)) {
+    Throw("{} {}: folder {} does not exist", option, path, folder.string());
+  }
+  // Creating a file is the only reliable test (access(2) ignores read-only mounts for root and
+  // ACLs); the probe is what the atomic write will do.
+  const std::string probe = TempName(path);
+  std::FILE* f = std::fopen(probe.c_str(), "wx");
+  if (!f) {
+    Throw("{} {}: cannot create a file in {} ({})", option, path, folder.string(),
+          std::strerror(errno));
+  }
+  std::fclose(f);
+  fs::remove(probe, ec);
+}
+
+void CheckOutputs(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs) {
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    const NamedPath& out = outputs[i];
+    if (out.path.empty() || out.path == "-") continue;
+    for (const NamedPath& in : inputs) {
+      if (in.folder_contents && IsInside(out.path, in.path)) {
+        Throw("{} {} is inside the input folder {} {}: refusing to write into an input",
+              out.option, out.path, in.option, in.path);
+      }
+      if (SameFile(out.path, in.path)) {
+        Throw("{} {} is the same file as the input {} {}: refusing to overwrite an input",
+              out.option, out.path, in.option, in.path);
+      }
+    }
+    for (size_t j = 0; j < i; ++j) {
+      if (outputs[j].path != "-" && SameFile(out.path, outputs[j].path)) {
+        Throw("{} {} is the same file as {} {}", out.option, out.path, outputs[j].option,
+              outputs[j].path);
+      }
+    }
+  }
+  for (const NamedPath& out : outputs) {
+    if (!out.path.empty() && out.path != "-") CheckWritable(out.path, out.option);
+  }
+}
+
+AtomicFile::AtomicFile(const std::string& path) : path_(path), temp_path_(TempName(path)) {}
+
+AtomicFile::~AtomicFile() { Discard(); }
+
+void AtomicFile::Commit() {
+  if (done_) return;
+  std::error_code ec;
+  fs::rename(temp_path_, path_, ec);
+  if (ec) {
+    Discard();
+    Throw("{}: cannot write ({})", path_, ec.message());
+  }
+  done_ = true;
+}
+
+void AtomicFile::Discard() {
+  if (done_) return;
+  std::error_code ec;
+  fs::remove(temp_path_, ec);
+  done_ = true;
+}
+
+AtomicOfstream::AtomicOfstream(const std::string& path, std::ios::openmode mode)
+    : file_(path), out_(file_.temp_path(), mode | std::ios::out) {
+  if (!out_) Throw("{}: cannot open for writing", path);
+}
+
+void AtomicOfstream::Commit() {
+  out_.flush();
+  const bool ok = static_cast<bool>(out_);
+  out_.close();
+  if (!ok || out_.fail()) {
+    file_.Discard();
+    Throw("{}: write failed", file_.path());
+  }
+  file_.Commit();
+}
+
+}  // namespace epiloc

@@ -1,0 +1,134 @@
+// Output paths of the commands, end to end through the binary (issue 18 items 2 and 3): an output
+// that is one of the command's inputs is refused with one line naming both and the input is left
+// as it was; unwritable outputs are found before the work; nothing partial is left behind.
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "cli_run_util.h"
+#include "test_util.h"
+
+namespace epiloc {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+class OutputPaths : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const std::string data = std::string(EPILOC_SOURCE_DIR) + "/tests/eval/data/";
+    fs::copy_file(data + "result.csv", dir_ / "result.csv");
+    fs::copy_file(data + "truth.csv", dir_ / "truth.csv");
+    WriteText(dir_ / "route.sqlite", "stands for a route database\n");
+    // A drive directory: only its manifest is read before the outputs are checked.
+    WriteText(dir_ / "drive/drive.json",
+              R"({"epiloc_drive": 1, "name": "d", "frames": {"csv": "frames.csv"},
+                  "gnss": {"file": "gnss.csv", "format": "csv"}})");
+    WriteText(dir_ / "drive/frames.csv", "frame,timestamp_s,image\n");
+    WriteText(dir_ / "drive/gnss.csv", "timestamp_s,lat_deg,lon_deg,alt_m\n");
+  }
+
+  // Runs the command, expects exit 1 with one line on stderr holding every part, and `input`
+  // unchanged.
+  void ExpectRefused(const std::string& args,
+                     const std::string& input,
+                     const std::vector<std::string>& parts) {
+    const std::string before = ReadAll(input);
+    const CliRun run = RunCli(args);
+    EXPECT_EQ(run.exit_code, 1) << args << "\n" << run.err;
+    EXPECT_EQ(NumLines(run.err), 1) << run.err;
+    for (const std::string& part : parts) EXPECT_THAT(run.err, HasSubstr(part)) << args;
+    EXPECT_EQ(ReadAll(input), before) << input << " was changed by: " << args;
+  }
+
+  TempDir dir_;
+};
+
+TEST_F(OutputPaths, LocalizeRefusesToOverwriteTheDatabaseOrTheDrive) {
+  const std::string db = dir_ / "route.sqlite";
+  ExpectRefused(fmt::format("localize --db {} --drive {} --out {}", db, dir_ / "drive", db), db,
+                {"--out " + db, "input --db " + db});
+  // Another spelling of the same file.
+  ExpectRefused(
+      fmt::format("localize --db {} --drive {} --out {}/drive/../route.sqlite", db,
+                  dir_ / "drive", dir_.str()),
+      db, {"--out", "input --db"});
+  ExpectRefused(fmt::format("localize --db {} --drive {} --out - --geojson {}", db, dir_ / "drive",
+                            dir_ / "drive/gnss.csv"),
+                dir_ / "drive/gnss.csv", {"--geojson", "input --drive", "gnss.csv"});
+  ExpectRefused(fmt::format("localize --db {} --drive {} --out x.csv --diagnostics {}", db,
+                            dir_ / "drive", dir_ / "drive/drive.json"),
+                dir_ / "drive/drive.json", {"--diagnostics", "drive.json"});
+  ExpectRefused(fmt::format("localize --db {} --drive {} --out - --nmea-out {}", db,
+                            dir_ / "drive", dir_ / "drive/frames.csv"),
+                dir_ / "drive/frames.csv", {"--nmea-out", "frames.csv"});
+}
+
+TEST_F(OutputPaths, ExportEvaluateGeorefBuildDbRefuseTheirInputs) {
+  const std::string result = dir_ / "result.csv";
+  ExpectRefused(fmt::format("export --result {0} --format geojson --out {0}", result), result,
+                {"--out", "input --result"});
+  ExpectRefused(fmt::format("evaluate --result {0} --truth {1} --json {0}", result,
+                            dir_ / "truth.csv"),
+                result, {"--json", "input --result"});
+  ExpectRefused(fmt::format("evaluate --result {0} --truth {1} --report {1}", result,
+                            dir_ / "truth.csv"),
+                dir_ / "truth.csv", {"--report", "input --truth"});
+  ExpectRefused(fmt::format("georef --vo {0} --anchors {1} --out {1}", dir_ / "truth.csv", result),
+                result, {"--out", "input --anchors"});
+  ExpectRefused(fmt::format("build-db --drive {} --db {}", dir_ / "drive", dir_ / "drive/frames.csv"),
+                dir_ / "drive/frames.csv", {"--db", "input --drive"});
+  ExpectRefused(fmt::format("build-db --drive {} --db {} --positions {}", dir_ / "drive",
+                            dir_ / "result.csv", dir_ / "result.csv"),
+                result, {"--db", "input --positions"});
+}
+
+TEST_F(OutputPaths, UnwritableOutputIsFoundBeforeTheWork) {
+  // Before: localize ran the whole drive, wrote --out, then failed on --geojson.
+  const CliRun run = RunCli(fmt::format("localize --db {} --drive {} --out {} --geojson {}",
+                                        dir_ / "route.sqlite", dir_ / "drive", dir_ / "out.csv",
+                                        dir_ / "missing/out.geojson"));
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_EQ(NumLines(run.err), 1) << run.err;
+  EXPECT_THAT(run.err, HasSubstr("--geojson"));
+  EXPECT_THAT(run.err, HasSubstr("does not exist"));
+  EXPECT_FALSE(fs::exists(dir_ / "out.csv"));
+
+  const CliRun folder = RunCli(fmt::format("export --result {} --format gpx --out {}",
+                                           dir_ / "result.csv", dir_ / "drive"));
+  EXPECT_EQ(folder.exit_code, 1);
+  EXPECT_THAT(folder.err, HasSubstr("is a folder"));
+}
+
+TEST_F(OutputPaths, AFailedExportLeavesThePreviousFileAndNoTemporaries) {
+  WriteText(dir_ / "out.gpx", "previous\n");
+  WriteText(dir_ / "bad.csv", "frame,timestamp_s,lat_deg,lon_deg,alt_m,s_m,db_frame,method,status\n"
+                              "0,0,49,8,100,0,0,gps,ok\n1,1,91,8,100,0,0,gps,ok\n");
+  const CliRun run =
+      RunCli(fmt::format("export --result {} --format gpx --out {}", dir_ / "bad.csv", dir_ / "out.gpx"));
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_EQ(ReadAll(dir_ / "out.gpx"), "previous\n");
+  const CliRun ok = RunCli(
+      fmt::format("export --result {} --format gpx --out {}", dir_ / "result.csv", dir_ / "out.gpx"));
+  ASSERT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_THAT(ReadAll(dir_ / "out.gpx"), HasSubstr("<gpx"));
+  for (const auto& entry : fs::directory_iterator(dir_.str())) {
+    EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << entry.path();
+  }
+}
+
+}  // namespace
+}  // namespace epiloc

@@ -1,0 +1,126 @@
+#include "epiloc/core/output_file.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "epiloc/core/csv.h"
+#include "epiloc/core/error.h"
+#include "test_util.h"
+
+namespace epiloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+size_t NumEntries(const std::string& dir) {
+  size_t n = 0;
+  for (const auto& entry : fs::directory_iterator(dir)) n += entry.exists() ? 1 : 0;
+  return n;
+}
+
+TEST(SameFile, ResolvesSpellingsAndLinks) {
+  TempDir dir;
+  WriteText(dir / "route.sqlite", "x");
+  fs::create_directories(dir / "sub");
+  EXPECT_TRUE(SameFile(dir / "route.sqlite", dir / "sub/../route.sqlite"));
+  EXPECT_TRUE(SameFile(dir / "route.sqlite", dir / "./route.sqlite"));
+  fs::create_symlink(dir / "route.sqlite", dir / "link.sqlite");
+  EXPECT_TRUE(SameFile(dir / "link.sqlite", dir / "route.sqlite"));
+  fs::create_hard_link(dir / "route.sqlite", dir / "hard.sqlite");
+  EXPECT_TRUE(SameFile(dir / "hard.sqlite", dir / "route.sqlite"));
+  // Not yet existing: compared by path.
+  EXPECT_TRUE(SameFile(dir / "new.csv", dir / "sub/../new.csv"));
+  EXPECT_FALSE(SameFile(dir / "new.csv", dir / "route.sqlite"));
+  EXPECT_FALSE(SameFile("", dir / "route.sqlite"));
+}
+
+TEST(CheckOutputs, RefusesAnOutputThatIsAnInput) {
+  TempDir dir;
+  WriteText(dir / "R.sqlite", "database");
+  const std::string message = ErrorOf([&] {
+    CheckOutputs({{"--out", dir / "./R.sqlite"}}, {{"--db", dir / "R.sqlite"}});
+  });
+  EXPECT_THAT(message, ::testing::HasSubstr("--out " + dir / "./R.sqlite"));
+  EXPECT_THAT(message, ::testing::HasSubstr("input --db " + dir / "R.sqlite"));
+  EXPECT_EQ(ReadAll(dir / "R.sqlite"), "database");
+  // Two outputs on one file.
+  ExpectError([&] { CheckOutputs({{"--out", dir / "a.csv"}, {"--geojson", dir / "a.csv"}}, {}); },
+              {"--geojson", "--out"});
+  // Standard output and absent options are not files.
+  CheckOutputs({{"--out", "-"}, {"--nmea-out", "-"}, {"--geojson", ""}},
+               {{"--db", dir / "R.sqlite"}});
+  CheckOutputs({{"--out", dir / "result.csv"}}, {{"--db", dir / "R.sqlite"}});
+  EXPECT_FALSE(fs::exists(dir / "result.csv"));
+  EXPECT_EQ(NumEntries(dir.str()), 1u);  // the probe file is gone
+}
+
+TEST(CheckOutputs, UnwritableOutputsAreFoundBeforeTheWork) {
+  TempDir dir;
+  ExpectError([&] { CheckOutputs({{"--geojson", dir / "missing/x.geojson"}}, {}); },
+              {"--geojson", "missing", "does not exist"});
+  ExpectError([&] { CheckOutputs({{"--out", dir.str()}}, {}); }, {"--out", "is a folder"});
+  WriteText(dir / "file", "");
+  ExpectError([&] { CheckOutputs({{"--json", dir / "file/x.json"}}, {}); }, {"--json"});
+}
+
+TEST(AtomicFile, CommitReplacesDiscardKeeps) {
+  TempDir dir;
+  WriteText(dir / "out.png", "old");
+  {
+    AtomicFile file(dir / "out.png");
+    EXPECT_EQ(fs::path(file.temp_path()).extension(), ".png");
+    EXPECT_EQ(fs::path(file.temp_path()).parent_path(), fs::path(dir.str()));
+    WriteText(file.temp_path(), "new");
+    EXPECT_EQ(ReadAll(dir / "out.png"), "old");
+  }  // not committed
+  EXPECT_EQ(ReadAll(dir / "out.png"), "old");
+  EXPECT_EQ(NumEntries(dir.str()), 1u);
+  {
+    AtomicOfstream out(dir / "out.png");
+    out << "new";
+    out.Commit();
+  }
+  EXPECT_EQ(ReadAll(dir / "out.png"), "new");
+  EXPECT_EQ(NumEntries(dir.str()), 1u);
+}
+
+TEST(CsvWriterAtomic, AFailedRunLeavesNoPartialFile) {
+  TempDir dir;
+  WriteText(dir / "previous.csv", "a\n1\n");
+  try {
+    CsvWriter csv(dir / "previous.csv", {"a"});
+    csv.WriteRow({"2"});
+    csv.Flush();
+    EXPECT_EQ(ReadAll(dir / "previous.csv"), "a\n1\n");  // not visible until closed
+    throw Error("disk full");
+  } catch (const Error&) {
+  }
+  EXPECT_EQ(ReadAll(dir / "previous.csv"), "a\n1\n");
+  try {
+    CsvWriter csv(dir / "fresh.csv", {"a"});
+    csv.WriteRow({"2"});
+    throw Error("later failure");
+  } catch (const Error&) {
+  }
+  EXPECT_FALSE(fs::exists(dir / "fresh.csv"));
+  EXPECT_EQ(NumEntries(dir.str()), 1u);
+  {
+    CsvWriter csv(dir / "fresh.csv", {"a"});
+    csv.WriteRow({"3"});
+  }  // a normal end commits
+  EXPECT_EQ(ReadAll(dir / "fresh.csv"), "a\n3\n");
+}
+
+}  // namespace
+}  // namespace epiloc
