@@ -132,8 +132,10 @@ TEST(PipelineKitti, MapAnchorsVoGeorefDatabaseLocalize) {
   const MethodEvaluation& online = Method(evaluation, "online");
   std::printf("query online along-track mean %.3f m, max %.3f m\n", online.along_track.mean_abs,
               MaxAbs(online.along_track));
-  // Target: mean <= 0.25 m; reached 0.094-0.098 m.
-  EXPECT_EQ(online.evaluated(), 77);
+  // Target: mean <= 0.25 m; reached 0.094-0.098 m with the DTW tracker, 0.044 m with the
+  // evidence-weighted one (issue 16), which reports a frame only once its evidence agrees: 76 or
+  // 77 of 77 frames (>= 95 %, the suite's target).
+  EXPECT_GE(online.evaluated() * 100, 77 * 95);
   EXPECT_LE(online.along_track.mean_abs, 0.15);
 }
 
