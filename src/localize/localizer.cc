@@ -163,6 +163,12 @@ Geodetic OriginOf(const Database& db, const std::string& path) {
   return *origin;
 }
 
+// Appends one clause to a frame's note ("; "-separated).
+void AddNote(std::string* note, const std::string& text) {
+  if (!note->empty()) *note += "; ";
+  *note += text;
+}
+
 // The working focal length of the query images: at most `ratio` times the finest database
 // camera's (0: the query's own). Finer query pixels have no database features at their scale to
 // match; they cost extraction time only.
@@ -422,16 +428,15 @@ void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
       confirmed = true;
     } else {
       refused = true;
-      if (!est->note.empty()) est->note += "; ";
-      est->note += fmt::format("{} {:+.2f} m from the track (sigma {:.2f} m): refused", m.name,
-                               m.s_m - filter.s_m(), m.sigma_m);
+      AddNote(&est->note, fmt::format("{} {:+.2f} m from the track (sigma {:.2f} m): refused",
+                                      m.name, m.s_m - filter.s_m(), m.sigma_m));
     }
   }
   if (!confirmed && refused) {
     // The first measurement of this track disagrees with the next one: it was the wrong one
     // as likely as this one. Start again from the next frame.
     filter.Reset();
-    est->note += "; initialisation not confirmed";
+    AddNote(&est->note, "initialisation not confirmed");
   }
 }
 
@@ -534,8 +539,7 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   impl.misses = updated ? 0 : impl.misses + 1;
   if (filter.initialised() && impl.misses >= options.lost_after_frames) {
     filter.Reset();  // lost: the next frame re-initialises
-    if (!est.note.empty()) est.note += "; ";
-    est.note += "track lost";
+    AddNote(&est.note, "track lost");
   }
   // Beyond the first or last database camera no pair brackets the vehicle: the evidence only
   // extrapolates, and the track would run on along the route's extension.
@@ -544,15 +548,14 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
                                filter.s_m() > impl.db_s.back() + options.route_end_margin_m);
   if (beyond_end) {
     off_route = true;
-    if (!est.note.empty()) est.note += "; ";
-    est.note += fmt::format("{:.1f} m beyond the route's {}",
-                            filter.s_m() < impl.db_s.front() ? impl.db_s.front() - filter.s_m()
-                                                             : filter.s_m() - impl.db_s.back(),
-                            filter.s_m() < impl.db_s.front() ? "start" : "end");
+    AddNote(&est.note,
+            fmt::format("{:.1f} m beyond the route's {}",
+                        filter.s_m() < impl.db_s.front() ? impl.db_s.front() - filter.s_m()
+                                                         : filter.s_m() - impl.db_s.back(),
+                        filter.s_m() < impl.db_s.front() ? "start" : "end"));
   }
   if (filter.initialised() && !impl.confirmed) {
-    if (!est.note.empty()) est.note += "; ";
-    est.note += "initialising: waiting for a second measurement";
+    AddNote(&est.note, "initialising: waiting for a second measurement");
   }
   if (!beyond_end && impl.confirmed && filter.initialised() &&
       filter.sigma_s_m() <= options.max_sigma_m) {
@@ -574,8 +577,7 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   } else {
     est.status = off_route ? TrackStatus::kOffRoute : TrackStatus::kLost;
     if (filter.initialised()) {
-      if (!est.note.empty()) est.note += "; ";
-      est.note += fmt::format("sigma {:.2f} m", filter.sigma_s_m());
+      AddNote(&est.note, fmt::format("sigma {:.2f} m", filter.sigma_s_m()));
     } else if (est.note.empty() && !est.epipolar.failure.empty()) {
       est.note = est.epipolar.failure;
     }

@@ -7,6 +7,7 @@
 #include <limits>
 #include <random>
 
+#include "camera_test_util.h"
 #include "epiloc/core/error.h"
 #include "test_util.h"
 
@@ -15,32 +16,15 @@ namespace {
 
 using ::testing::HasSubstr;
 
-// KITTI-like camera with strong barrel distortion.
-Camera KittiCamera() {
-  Camera camera;
-  camera.width = 1392;
-  camera.height = 512;
-  camera.fx = 984.0;
-  camera.fy = 981.0;
-  camera.cx = 690.0;
-  camera.cy = 233.2;
-  camera.distortion = {-0.37, 0.2, 0.002, 0.001, -0.07};
-  return camera;
-}
-
-
 TEST(Camera, UnprojectThenProjectIsIdentityOverTheImage) {
   const Camera camera = KittiCamera();
   double worst_px = 0.0;
-  for (double v = 0.0; v <= camera.height - 1;
-       v += (camera.height - 1) / 16.0) {
-    for (double u = 0.0; u <= camera.width - 1;
-         u += (camera.width - 1) / 32.0) {
+  for (double v = 0.0; v <= camera.height - 1; v += (camera.height - 1) / 16.0) {
+    for (double u = 0.0; u <= camera.width - 1; u += (camera.width - 1) / 32.0) {
       const Eigen::Vector2d pixel(u, v);
       const Eigen::Vector2d ray = camera.Unproject(pixel);
       for (const double depth : {0.5, 7.0, 80.0}) {
-        const Eigen::Vector3d point =
-            depth * Eigen::Vector3d(ray.x(), ray.y(), 1.0);
+        const Eigen::Vector3d point = depth * Eigen::Vector3d(ray.x(), ray.y(), 1.0);
         worst_px = std::max(worst_px, (camera.Project(point) - pixel).norm());
       }
     }
@@ -69,14 +53,12 @@ TEST(Camera, DistortionModelMatchesOpenCvFormula) {
   const double x = 0.3, y = -0.2;
   const double r2 = x * x + y * y;
   const double radial = 1 - 0.37 * r2 + 0.2 * r2 * r2 - 0.07 * r2 * r2 * r2;
-  const Eigen::Vector2d expected(
-      x * radial + 2 * 0.002 * x * y + 0.001 * (r2 + 2 * x * x),
-      y * radial + 0.002 * (r2 + 2 * y * y) + 2 * 0.001 * x * y);
+  const Eigen::Vector2d expected(x * radial + 2 * 0.002 * x * y + 0.001 * (r2 + 2 * x * x),
+                                 y * radial + 0.002 * (r2 + 2 * y * y) + 2 * 0.001 * x * y);
   EXPECT_LT((camera.Distort({x, y}) - expected).norm(), 1e-15);
   EXPECT_LT((camera.Undistort(expected) - Eigen::Vector2d(x, y)).norm(), 1e-12);
   // The principal point is the image of the optical axis.
-  EXPECT_LT((camera.Project({0, 0, 5}) - Eigen::Vector2d(690.0, 233.2)).norm(),
-            1e-12);
+  EXPECT_LT((camera.Project({0, 0, 5}) - Eigen::Vector2d(690.0, 233.2)).norm(), 1e-12);
 }
 
 TEST(Camera, PinholeWithoutDistortion) {
@@ -87,8 +69,7 @@ TEST(Camera, PinholeWithoutDistortion) {
   const Eigen::Vector2d pixel = camera.Project({1.0, -0.5, 10.0});
   EXPECT_NEAR(pixel.x(), 690.0 + 98.4, 1e-12);
   EXPECT_NEAR(pixel.y(), 233.2 - 49.05, 1e-12);
-  EXPECT_LT((camera.Unproject(pixel) - Eigen::Vector2d(0.1, -0.05)).norm(),
-            1e-15);
+  EXPECT_LT((camera.Unproject(pixel) - Eigen::Vector2d(0.1, -0.05)).norm(), 1e-15);
   Eigen::Matrix3d k;
   k << 984.0, 0.0, 690.0, 0.0, 981.0, 233.2, 0.0, 0.0, 1.0;
   EXPECT_EQ(camera.K(), k);
@@ -106,23 +87,19 @@ TEST(Camera, CheckReportsInvalidValues) {
   EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("outside"));
   camera = KittiCamera();
   camera.fx = -984.0;
-  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }),
-              HasSubstr("c: focal lengths fx=-984"));
+  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("c: focal lengths fx=-984"));
   camera = KittiCamera();
   camera.fy = 0.0;
-  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }),
-              HasSubstr("must be positive"));
+  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("must be positive"));
   camera = KittiCamera();
   camera.fx = std::numeric_limits<double>::infinity();
   EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("focal"));
   camera = KittiCamera();
   camera.width = 0;
-  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }),
-              HasSubstr("image size 0x512"));
+  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("image size 0x512"));
   camera = KittiCamera();
   camera.cx = std::nan("");
-  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }),
-              HasSubstr("principal point is not finite"));
+  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("principal point is not finite"));
   camera = KittiCamera();
   camera.distortion[4] = std::nan("");
   EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("distortion"));

@@ -8,25 +8,14 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "camera_test_util.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
 namespace {
 
-Camera DistortedCamera() {
-  Camera camera;
-  camera.width = 1392;
-  camera.height = 512;
-  camera.fx = 984.0;
-  camera.fy = 981.0;
-  camera.cx = 690.0;
-  camera.cy = 233.2;
-  camera.distortion = {-0.37, 0.2, 0.002, 0.001, -0.07};
-  return camera;
-}
-
 Camera PinholeCamera() {
-  Camera camera = DistortedCamera();
+  Camera camera = KittiCamera();
   camera.distortion.fill(0.0);
   return camera;
 }
@@ -85,7 +74,7 @@ void ExpectSpotsAtProjections(const Undistorter& undistorter, double tolerance_p
 }
 
 TEST(Undistorter, SpotsLandAtTheirPinholeProjections) {
-  const Undistorter undistorter(DistortedCamera());
+  const Undistorter undistorter(KittiCamera());
   EXPECT_EQ(undistorter.scale(), 1.0);
   EXPECT_EQ(undistorter.undistorted_camera().width, 1392);
   ExpectSpotsAtProjections(undistorter, 0.1);
@@ -99,7 +88,7 @@ TEST(Undistorter, WorkingResolutionKeepsTheGeometry) {
   EXPECT_EQ(pinhole.undistorted_camera().width, 849);  // 1392 * 0.61
   ExpectSpotsAtProjections(pinhole, 0.1);
   // With distortion, reduced by more than 2 (area averaging first).
-  const Undistorter small(DistortedCamera(), 300.0);
+  const Undistorter small(KittiCamera(), 300.0);
   EXPECT_LT(small.scale(), 0.5);
   EXPECT_LE(small.undistorted_camera().fx, 300.0 + 1e-9);
   ExpectSpotsAtProjections(small, 0.15);
@@ -111,10 +100,10 @@ TEST(Undistorter, WorkingResolutionKeepsTheGeometry) {
 }
 
 TEST(Undistorter, BadInput) {
-  const Undistorter undistorter(DistortedCamera());
+  const Undistorter undistorter(KittiCamera());
   EXPECT_THROW(undistorter.Undistort(cv::Mat(100, 100, CV_8U)), Error);
-  EXPECT_THROW(Undistorter(DistortedCamera(), -1.0), Error);
-  EXPECT_THROW(Undistorter(DistortedCamera(), NAN), Error);
+  EXPECT_THROW(Undistorter(KittiCamera(), -1.0), Error);
+  EXPECT_THROW(Undistorter(KittiCamera(), NAN), Error);
 }
 
 }  // namespace
