@@ -269,6 +269,16 @@ int RunLocalize(int argc, char** argv) {
                run.num_frames ? 1e3 * run.extraction_seconds / run.num_frames : 0.0,
                run.num_frames ? 1e3 * run.tracking_seconds / run.num_frames : 0.0,
                1e3 * run.latency_p50_s, 1e3 * run.latency_p95_s, 1e3 * run.latency_max_s);
+  if (run.num_frames > 0) {
+    const double n = run.num_frames;
+    const StageSeconds& st = run.stages;
+    std::fprintf(summary,
+                 "%s: per frame by stage [ms]: read %.1f, undistort %.1f, sift %.1f, retrieval "
+                 "%.1f | match %.1f, geometry %.1f, refine %.1f, other %.1f\n",
+                 source->name().c_str(), 1e3 * st.read / n, 1e3 * st.undistort / n,
+                 1e3 * st.sift / n, 1e3 * st.retrieval / n, 1e3 * st.match / n,
+                 1e3 * st.geometry / n, 1e3 * st.refine / n, 1e3 * st.other / n);
+  }
   if (run.refined) {
     std::fprintf(summary,
                  "%s: 6-DoF refinement: %d frames refined, %d thin structure, %d rejected "

@@ -45,6 +45,7 @@ std::optional<QueryFrame> DriveFrameSource::Next() {
   frame.arrival_s = NowSeconds();
   // The localizer works on grey images: reading them grey spares a colour conversion later.
   frame.image = reader_->ReadGrey(i);
+  frame.read_seconds = NowSeconds() - frame.arrival_s;
   if (!gnss_.per_frame.empty() && gnss_.per_frame[i]) frame.gnss = gnss_.per_frame[i]->position;
   return frame;
 }
@@ -82,7 +83,9 @@ std::optional<QueryFrame> FollowDriveSource::Next() {
   frame.timestamp_s = record.timestamp_s;
   // Rows read in one poll arrived together, however long the earlier ones of them take.
   frame.arrival_s = polled_at_s_;
+  const double read_start = NowSeconds();
   frame.image = ReadImageFile(manifest.ImagePath(record), manifest.camera, false);
+  frame.read_seconds = NowSeconds() - read_start;
   if (use_gnss_) {
     if (const std::optional<PositionSample> fix = follower_.GnssAt(record.timestamp_s)) {
       frame.gnss = fix->position;
@@ -121,8 +124,10 @@ VideoFrameSource::~VideoFrameSource() = default;
 std::optional<QueryFrame> VideoFrameSource::Next() {
   if (options_.max_frames >= 0 && next_frame_ >= options_.max_frames) return std::nullopt;
   QueryFrame frame;
+  const double read_start = NowSeconds();
   if (!capture_->capture.read(frame.image) || frame.image.empty()) return std::nullopt;
   frame.arrival_s = NowSeconds();
+  frame.read_seconds = frame.arrival_s - read_start;
   frame.frame = next_frame_++;
   if (device_) {
     frame.timestamp_s =

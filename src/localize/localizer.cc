@@ -266,11 +266,17 @@ std::vector<int> Localizer::Impl::Window(double from_s_m, double to_s_m) const {
 std::vector<PairResult> Localizer::Impl::Evaluate(const PreparedFrame& query,
                                                   const std::vector<int>& indices) {
   const Camera& camera = undistorter.undistorted_camera();
-  std::vector<PairResult> r =
-      options.pairs.window_matching
-          ? evaluator->EvaluateWindow(camera, query.features, indices, options.num_threads)
-          : evaluator->Evaluate(camera, query.features.keypoints, *query.index, indices,
-                                options.num_threads);
+  std::vector<PairResult> r;
+  if (options.pairs.window_matching) {
+    r = evaluator->EvaluateWindow(camera, query.features, indices, options.num_threads,
+                                  &match_seconds, &geometry_seconds);
+  } else {
+    // Pair by pair, matching and geometry interleave: all of it counts as matching.
+    const auto start = Clock::now();
+    r = evaluator->Evaluate(camera, query.features.keypoints, *query.index, indices,
+                            options.num_threads);
+    match_seconds += Seconds(start);
+  }
   num_pairs += static_cast<int64_t>(r.size());
   return r;
 }
@@ -440,6 +446,18 @@ void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
   }
 }
 
+StageSeconds& StageSeconds::operator+=(const StageSeconds& o) {
+  read += o.read;
+  undistort += o.undistort;
+  sift += o.sift;
+  retrieval += o.retrieval;
+  match += o.match;
+  geometry += o.geometry;
+  refine += o.refine;
+  other += o.other;
+  return *this;
+}
+
 Localizer::Localizer(const std::string& db_path,
                      const Camera& query_camera,
                      const LocalizeOptions& options)
@@ -458,12 +476,19 @@ PreparedFrame Localizer::Prepare(const QueryFrame& frame) const {
   EPILOC_CHECK(!frame.image.empty(), "frame {}: empty image", frame.frame);
   SiftOptions sift = impl.options.sift;
   sift.max_num_features = impl.options.max_query_features;
-  out.features = ExtractSift(impl.undistorter.Undistort(ToGrey8(frame.image)), sift);
+  out.stages.read = frame.read_seconds;
+  const cv::Mat working = impl.undistorter.Undistort(ToGrey8(frame.image));
+  out.stages.undistort = Seconds(start);
+  const auto sift_start = Clock::now();
+  out.features = ExtractSift(working, sift);
+  out.stages.sift = Seconds(sift_start);
+  const auto retrieval_start = Clock::now();
   if (!impl.options.pairs.window_matching) {
     out.index =
         std::make_shared<DescriptorIndex>(out.features.descriptors, impl.options.pairs.match);
   }
   if (impl.retrieval_model) out.global = impl.retrieval_model->Compute(out.features.descriptors);
+  out.stages.retrieval = Seconds(retrieval_start);
   out.extraction_seconds = Seconds(start);
   return out;
 }
@@ -476,6 +501,8 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   est.frame = query.frame;
   est.timestamp_s = query.timestamp_s;
   est.extraction_seconds = query.extraction_seconds;
+  est.stages = query.stages;
+  impl.match_seconds = impl.geometry_seconds = 0.0;
   bool off_route = false;
   if (options.use_gps && query.gnss) {
     est.gnss = query.gnss;
@@ -532,7 +559,9 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
                                    options.evidence);
   if (impl.refine && (est.epipolar.valid || filter.initialised())) {
     const double reference = filter.initialised() ? filter.s_m() : est.epipolar.l_m;
+    const auto refine_start = Clock::now();
     est.refined = impl.Refine(query, reference, pairs);
+    est.stages.refine = Seconds(refine_start);
   }
   impl.Fuse(t, &est);
   const bool updated = est.epipolar_accepted || est.pnp_accepted;
@@ -601,6 +630,11 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   }
   if (options.diagnostics) est.pairs = std::move(pairs);
   est.tracking_seconds = Seconds(start);
+  est.stages.match = impl.match_seconds;
+  est.stages.geometry = impl.geometry_seconds;
+  est.stages.other =
+      std::max(0.0, est.tracking_seconds - est.stages.match - est.stages.geometry -
+                        est.stages.refine);
   return est;
 }
 

@@ -66,6 +66,9 @@ struct Localizer::Impl {
   GlobalIndex retrieval_index;
   std::unordered_map<int64_t, int> db_index_of_image;
 
+  // The current frame's matching and geometry time (Evaluate adds to it; Track resets it).
+  double match_seconds = 0.0, geometry_seconds = 0.0;
+
   // Tracking state: the filter is initialised while the vehicle is tracked.
   AlongTrackFilter filter;
   int misses = 0;  // consecutive frames without an accepted measurement

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <numeric>
 #include <thread>
 
@@ -192,8 +193,12 @@ std::vector<PairResult> PairEvaluator::Evaluate(const Camera& query_camera,
 std::vector<PairResult> PairEvaluator::EvaluateWindow(const Camera& query_camera,
                                                       const FeatureSet& query,
                                                       const std::vector<int>& db_indices,
-                                                      int num_threads) {
+                                                      int num_threads,
+                                                      double* match_seconds,
+                                                      double* geometry_seconds) {
   if (db_indices.empty()) return {};
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point start = Clock::now();
   window_matcher_.SetWindow(db_indices, [this](int db_index) {
     const std::shared_ptr<const CachedFrame> frame = Load(db_index);
     // Aliasing pointer: keeps the cached frame alive while the matcher holds its descriptors.
@@ -201,6 +206,7 @@ std::vector<PairResult> PairEvaluator::EvaluateWindow(const Camera& query_camera
   });
   const std::unordered_map<int, std::vector<WindowMatch>> matches = window_matcher_.Match(
       query.descriptors, -1, options_.match.ratio, options_.match.num_checks, num_threads);
+  const Clock::time_point matched = Clock::now();
   std::vector<PairResult> results(db_indices.size());
   ParallelFor(static_cast<int64_t>(db_indices.size()), num_threads, [&](int64_t k) {
     const int db_index = db_indices[k];
@@ -211,6 +217,10 @@ std::vector<PairResult> PairEvaluator::EvaluateWindow(const Camera& query_camera
     }
     results[k] = EpipoleOfMatches(query_camera, query.keypoints, db_index, *Load(db_index), rows);
   });
+  if (match_seconds) *match_seconds += std::chrono::duration<double>(matched - start).count();
+  if (geometry_seconds) {
+    *geometry_seconds += std::chrono::duration<double>(Clock::now() - matched).count();
+  }
   return results;
 }
 

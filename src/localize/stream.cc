@@ -119,6 +119,7 @@ LocalizeRun LocalizeStream(Localizer& localizer,
       ++run.num_frames;
       run.extraction_seconds += estimate.extraction_seconds;
       run.tracking_seconds += estimate.tracking_seconds;
+      run.stages += estimate.stages;
       if (estimate.status == TrackStatus::kOk) ++run.num_localized_online;
       if (estimate.refined) {
         switch (estimate.refined->status) {

@@ -68,7 +68,9 @@ TEST(Stream, TrackFrameByFrameGivesTheBatchRows) {
     EXPECT_EQ(row.status, other.status) << Key(row);
     EXPECT_EQ(row.has_s, other.has_s) << Key(row);
     // Every random choice is seeded (kd-forest, RANSAC): the same frames give the same rows.
-    if (row.has_s && other.has_s) EXPECT_EQ(row.s_m, other.s_m) << Key(row);
+    if (row.has_s && other.has_s) {
+      EXPECT_EQ(row.s_m, other.s_m) << Key(row);
+    }
     EXPECT_EQ(row.position.lat_deg, other.position.lat_deg) << Key(row);
     EXPECT_EQ(row.position.lon_deg, other.position.lon_deg) << Key(row);
     EXPECT_EQ(row.extra, other.extra) << Key(row);

@@ -125,6 +125,24 @@ struct LocalizeOptions {
 std::string ModeName(LocalizeOptions::Mode mode);
 LocalizeOptions::Mode ParseMode(const std::string& name);
 
+// Where a frame's time went, per stage (wall-clock seconds of the thread that ran the stage;
+// matching and geometry use several threads inside, so with more than one thread these are not
+// CPU times). `epiloc localize` prints them averaged per frame; run it with --threads 1 for a
+// profile whose stages add up to the CPU time per frame.
+struct StageSeconds {
+  double read = 0.0;       // image read and decoded by the frame source
+  double undistort = 0.0;  // grey conversion, undistortion and reduction to the working size
+  double sift = 0.0;       // SIFT detection and description
+  double retrieval = 0.0;  // retrieval descriptor (and the query's index, pair-by-pair matching)
+  double match = 0.0;      // descriptor matching against the window's database frames
+  double geometry = 0.0;   // epipolar geometry (RANSAC) of each pair
+  double refine = 0.0;     // 6-DoF pose by PnP against the survey's points
+  double other = 0.0;      // the rest of Track: evidence, filter, windows, rows
+
+  StageSeconds& operator+=(const StageSeconds& o);
+  double Extraction() const { return undistort + sift + retrieval; }
+};
+
 // One camera frame as it arrives.
 struct QueryFrame {
   frame_t frame = kInvalidFrame;  // the caller's frame number (result rows carry it)
@@ -133,6 +151,7 @@ struct QueryFrame {
   cv::Mat image;
   std::optional<Geodetic> gnss;  // GNSS fix at timestamp_s, when there is one
   double arrival_s = 0.0;        // when the frame became available (steady clock, for latency)
+  double read_seconds = 0.0;     // reading and decoding it (frame sources fill it in)
 };
 
 // A frame after feature extraction (Localizer::Prepare), ready for Track.
@@ -145,6 +164,7 @@ struct PreparedFrame {
   Eigen::VectorXf global;                  // retrieval descriptor (empty without an index)
   std::shared_ptr<DescriptorIndex> index;  // query index (pair-by-pair matching only)
   double extraction_seconds = 0.0;
+  StageSeconds stages;  // read, undistort, sift, retrieval
 };
 
 enum class TrackStatus { kOk, kLost, kOffRoute };
@@ -185,6 +205,7 @@ struct FrameEstimate {
   int num_pairs = 0;  // pairs evaluated for this frame
   double extraction_seconds = 0.0;
   double tracking_seconds = 0.0;
+  StageSeconds stages;  // every stage, Prepare's and Track's
 };
 
 class Localizer {

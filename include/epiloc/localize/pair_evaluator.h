@@ -103,10 +103,13 @@ class PairEvaluator {
 
   // The same with one search of the query's descriptors against the window of `db_indices`
   // (WindowMatcher); the window slides incrementally between calls. Not thread-safe.
+  // `match_seconds` and `geometry_seconds`, when given, get the wall time of the two stages added.
   std::vector<PairResult> EvaluateWindow(const Camera& query_camera,
                                          const FeatureSet& query,
                                          const std::vector<int>& db_indices,
-                                         int num_threads);
+                                         int num_threads,
+                                         double* match_seconds = nullptr,
+                                         double* geometry_seconds = nullptr);
 
  private:
   struct CachedFrame {

@@ -33,6 +33,7 @@ struct LocalizeRun {
   // Per stage, summed over frames (extraction runs on other threads, so these overlap).
   double extraction_seconds = 0.0;  // undistortion, SIFT, retrieval descriptor
   double tracking_seconds = 0.0;    // matching, epipoles, DTW, V-fit, refinement
+  StageSeconds stages;              // the same split by stage, summed over frames
   // Per frame, from the frame's arrival (FrameSource) to its rows handed to the sink.
   double latency_p50_s = 0.0, latency_p95_s = 0.0, latency_max_s = 0.0;
 };
