@@ -1,5 +1,7 @@
 // epiloc: locate a vehicle along a surveyed road from a dashcam and a cheap GPS.
 // `epiloc <command> [options]`; `epiloc help` lists the commands.
+#include <malloc.h>
+
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -41,9 +43,22 @@ std::string OneLine(const std::string& message) {
   return line;
 }
 
+// Keeps freed image buffers in the heap for the next frame. glibc serves blocks above
+// M_MMAP_THRESHOLD with a fresh mmap each time and returns them on free, so every frame's SIFT
+// pyramid (tens of MB of float images) was page-faulted and zeroed again: 13 % of the CPU time
+// of localizing a 1080p drive went to the kernel. Peak memory is unchanged (the same buffers,
+// reused). Programs linking the library choose their own allocator policy.
+void KeepImageBuffers() {
+  constexpr int kMmapThreshold = 256 << 20;  // larger than any per-frame buffer
+  constexpr int kTrimThreshold = 512 << 20;  // free memory kept before it is returned
+  mallopt(M_MMAP_THRESHOLD, kMmapThreshold);
+  mallopt(M_TRIM_THRESHOLD, kTrimThreshold);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  KeepImageBuffers();
   if (argc < 2) {
     std::fprintf(stderr, "epiloc: no command given (see 'epiloc help')\n");
     return epiloc::kExitUsage;

@@ -110,10 +110,14 @@ cv::Mat ReadImageFile(const std::string& path, const Camera& camera, bool colour
   }
   const std::string truncation = ImageTruncation(data);
   if (!truncation.empty()) Throw("{}: cannot read image: {}", path, truncation);
-  // IMREAD_UNCHANGED keeps 16-bit data, so the conversion below is ours and explicit.
+  // IMREAD_UNCHANGED keeps 16-bit data, so the conversion below is ours and explicit. A JPEG
+  // (always 8-bit) wanted grey is decoded grey: libjpeg then skips the colour planes' inverse DCT,
+  // upsampling and colour conversion, half the decoding time of a colour 1080p frame.
+  const bool jpeg = data.size() >= 2 && static_cast<uint8_t>(data[0]) == 0xFF &&
+                    static_cast<uint8_t>(data[1]) == 0xD8;
   cv::Mat image = cv::imdecode(cv::Mat(1, static_cast<int>(std::min<size_t>(data.size(), INT32_MAX)),
                                        CV_8U, data.data()),
-                               cv::IMREAD_UNCHANGED);
+                               jpeg && !colour ? cv::IMREAD_GRAYSCALE : cv::IMREAD_UNCHANGED);
   if (image.empty()) Throw("{}: cannot read image", path);
   CheckImageSize(image, camera, path);
   image = ConvertChannels(ToEightBit(image), colour);
