@@ -88,10 +88,11 @@ struct LocalizeOptions {
   double survey_sigma_m = 0.05;
   // Working resolution: query images are reduced (one remap with the undistortion) until their
   // focal length is at most this times the database camera's; 0 keeps the query's own. A query
-  // finer than the survey adds pixels, not matches: SIFT matches features of similar scale, and
-  // the survey holds none finer than its own pixels (the margin allows for viewpoint and for
-  // the query being nearer to the side of the street).
-  double max_focal_ratio = 1.25;
+  // finer than the survey adds pixels, not matches: the survey holds no features finer than its
+  // own pixels, and SIFT's scale space matches a feature seen larger or smaller from another
+  // viewpoint (another lane, a few metres along) at another octave. 1 = the survey's pixel scale;
+  // the time of extraction grows with the square of the ratio.
+  double max_focal_ratio = 1.0;
   // Strongest query features used.
   int max_query_features = 2000;
   // Threads for pair evaluation inside Track (0 = one per core). Extraction ahead of the tracker
