@@ -13,6 +13,9 @@
 namespace epiloc {
 namespace {
 
+// Draws OpenCV 4.6 allows findEssentialMat(method = USAC_*), whatever limit it is given.
+constexpr int kUsacEssentialDraws = 1000;
+
 cv::Mat ToCv(const Eigen::Matrix3d& m) {
   cv::Mat out;
   cv::eigen2cv(m, out);
@@ -92,6 +95,22 @@ double EpipolarDistance(const Eigen::Vector3d& q, double focal_px) {
   return std::abs(q.z()) / (focal_px * std::abs(q.x()));
 }
 
+int RansacIterationCap(const EpipoleOptions& options, int num_matches) {
+  options.Check();
+  if (num_matches < options.min_inliers) return options.max_iterations;
+  // A pair is accepted only with at least this share of inliers, so RANSAC need not search
+  // longer than it takes to draw one all-inlier sample at that share with the wanted
+  // confidence: a hopeless pair (few matches, none consistent) stops there instead of at the
+  // limit. 5 points per sample for the essential matrix, 7 for the fundamental matrix.
+  const double share = std::max(options.min_inlier_ratio,
+                                static_cast<double>(options.min_inliers) / num_matches);
+  const int sample = options.model == EpipoleOptions::Model::kEssential ? 5 : 7;
+  const double p_good = std::pow(std::min(1.0, share), sample);
+  if (p_good >= 1.0) return 1;
+  const double needed = std::ceil(std::log(1.0 - options.confidence) / std::log1p(-p_good));
+  return static_cast<int>(std::clamp(needed, 1.0, static_cast<double>(options.max_iterations)));
+}
+
 EpipoleResult EstimateEpipole(const std::vector<Eigen::Vector2d>& query_pixels,
                               const Camera& query_camera,
                               const std::vector<Eigen::Vector2d>& db_pixels,
@@ -121,18 +140,39 @@ EpipoleResult EstimateEpipole(const std::vector<Eigen::Vector2d>& query_pixels,
 
   const int usac_method =
       options.robust == EpipoleOptions::Robust::kFast ? cv::USAC_FAST : cv::USAC_MAGSAC;
+  const int max_iterations = RansacIterationCap(options, n);
   cv::Mat mask;
   cv::Mat essential;
   double fundamental_e_x = std::numeric_limits<double>::quiet_NaN();
   try {
     if (options.model == EpipoleOptions::Model::kEssential) {
-      essential = cv::findEssentialMat(query_norm, db_norm, cv::Mat::eye(3, 3, CV_64F), usac_method,
-                                       options.confidence, options.max_error_px / query_camera.fx,
-                                       options.max_iterations, mask);
+      const cv::Mat identity = cv::Mat::eye(3, 3, CV_64F);
+      const double threshold = options.max_error_px / query_camera.fx;
+      if (options.robust == EpipoleOptions::Robust::kFast && max_iterations < kUsacEssentialDraws) {
+        // OpenCV 4.6's findEssentialMat(method = USAC_*) ignores its iteration limit and always
+        // allows 1000 draws (usac::findEssentialMat); a hopeless pair spends them all, ~30 ms.
+        // Its explicit-parameter form honours the limit: USAC_FAST's settings, fewer draws.
+        cv::UsacParams params;
+        params.confidence = options.confidence;
+        params.threshold = threshold;
+        params.maxIterations = max_iterations;
+        params.sampler = cv::SAMPLING_UNIFORM;
+        params.score = cv::SCORE_METHOD_MSAC;
+        params.loMethod = cv::LOCAL_OPTIM_INNER_AND_ITER_LO;
+        params.loIterations = 5;
+        params.loSampleSize = 16;
+        params.isParallel = false;
+        params.randomGeneratorState = 0;
+        essential = cv::findEssentialMat(query_norm, db_norm, identity, identity, cv::noArray(),
+                                         cv::noArray(), mask, params);
+      } else {
+        essential = cv::findEssentialMat(query_norm, db_norm, identity, usac_method,
+                                         options.confidence, threshold, max_iterations, mask);
+      }
       if (essential.rows > 3) essential = essential.rowRange(0, 3).clone();
     } else {
       const cv::Mat f = cv::findFundamentalMat(query_px, db_px, usac_method, options.max_error_px,
-                                               options.confidence, options.max_iterations, mask);
+                                               options.confidence, max_iterations, mask);
       if (f.rows == 3 && f.cols == 3) {
         Eigen::Matrix3d fe;
         cv::cv2eigen(f, fe);

@@ -1,5 +1,6 @@
 #include "epiloc/geometry/epipole.h"
 
+#include <algorithm>
 #include <random>
 
 #include <Eigen/Geometry>
@@ -147,6 +148,43 @@ TEST(Epipole, TooFewMatchesOrInliersAreMissing) {
   }
   result = EstimateEpipole(pair.query, camera, pair.db, camera, EpipoleOptions());
   EXPECT_FALSE(result.valid) << "inliers " << result.num_inliers;
+}
+
+TEST(Epipole, RansacStopsAtTheSmallestAcceptableInlierShare) {
+  EpipoleOptions options;  // 20 inliers, a share of 0.2, confidence 0.999, at most 2000
+  // 32 matches: an accepted pair has >= 20/32 inliers; one all-inlier 5-sample in 69 draws
+  // with probability 0.999: 1 - (1 - 0.625^5)^69 >= 0.999 > 1 - (1 - 0.625^5)^68.
+  EXPECT_EQ(RansacIterationCap(options, 32), 69);
+  // Many matches: the share of 0.2 would need 21,583 draws; the limit holds.
+  EXPECT_EQ(RansacIterationCap(options, 1000), 2000);
+  // Exactly the minimum: every match must be an inlier, one draw decides.
+  EXPECT_EQ(RansacIterationCap(options, 20), 1);
+  options.model = EpipoleOptions::Model::kFundamental;  // 7-point samples
+  EXPECT_EQ(RansacIterationCap(options, 32), 182);
+
+  // The cap does not lose a pair that has the share: 40 matches, 26 of them true (0.65).
+  std::mt19937_64 rng(11);
+  const Camera camera = MakeCamera(640, 480, 500);
+  Pair pair = Project(StreetPoints(rng, 60), camera, camera, Eigen::Vector3d(0.6, 0, 4),
+                      SmallRotation(1.0, 0.0), 0.3, rng);
+  ASSERT_GE(pair.query.size(), 26u);
+  pair.query.resize(26);
+  pair.db.resize(26);
+  std::uniform_real_distribution<double> x(0, 639), y(0, 479);
+  for (int i = 0; i < 14; ++i) {
+    pair.query.emplace_back(x(rng), y(rng));
+    pair.db.emplace_back(x(rng), y(rng));
+  }
+  options.model = EpipoleOptions::Model::kEssential;
+  ASSERT_LT(RansacIterationCap(options, 40), 1000);  // the explicit-parameter path of OpenCV
+  for (int seed = 0; seed < 20; ++seed) {
+    // Other orders of the same matches: other RANSAC draws.
+    std::shuffle(pair.query.begin(), pair.query.end(), std::mt19937_64(seed));
+    std::shuffle(pair.db.begin(), pair.db.end(), std::mt19937_64(seed));
+    const EpipoleResult result = EstimateEpipole(pair.query, camera, pair.db, camera, options);
+    EXPECT_TRUE(result.valid) << "order " << seed << ": " << result.failure;
+    EXPECT_GE(result.num_inliers, 24) << "order " << seed;
+  }
 }
 
 TEST(Epipole, EquationOneOnExactGeometry) {

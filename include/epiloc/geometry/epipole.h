@@ -32,7 +32,8 @@ struct EpipoleOptions {
   double max_error_px = 1.0;
   // RANSAC confidence.
   double confidence = 0.999;
-  // RANSAC iteration limit.
+  // RANSAC iteration limit (fewer when few matches: RansacIterationCap). The essential matrix
+  // with Robust::kFast never draws more than 1000 (OpenCV 4.6's limit for it).
   int max_iterations = 2000;
   // A pair with fewer matches or inliers is marked missing.
   int min_inliers = 20;
@@ -64,6 +65,11 @@ struct EpipoleResult {
   double signed_distance = 0.0;
   double median_parallax_deg = 0.0;
 };
+
+// RANSAC iterations for `num_matches` matches: enough to draw one all-inlier sample, with
+// options.confidence, from a pair at the smallest inlier share that would be accepted
+// (max(min_inlier_ratio, min_inliers / num_matches)); at most options.max_iterations.
+int RansacIterationCap(const EpipoleOptions& options, int num_matches);
 
 // Estimates the epipole of the database camera in the query image from matched pixels of two
 // undistorted pinhole images (query_pixels[i] <-> db_pixels[i]). Expected failure (too few
