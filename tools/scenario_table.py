@@ -4,6 +4,8 @@ its runs, then the suite's worst figures.
 
 Input: a TSV of runs (scenario, run, frames, frames/s, max RSS kB, evaluation JSON of
 `epiloc evaluate --json`), and the number of runs per scenario.
+"localized" is "K of N" where the query leaves the surveyed route: K frames localized (status ok)
+of the N whose ground truth is on the route (evaluate's truth_on_route); the worst run's share.
 """
 import json
 import sys
@@ -57,7 +59,14 @@ def main():
             online = along(r["summary"], "online")
             counts = method(r["summary"], "online").get("counts", {})
             ok = counts.get("ok", 0)
-            localized = ok if localized is None else min(localized, ok)
+            # Localized among the frames whose truth is on the surveyed route (evaluate's
+            # truth_on_route); off it, lost / off_route is the right answer.
+            if "truth_on_route" in counts:
+                share = (counts["ok_on_route"], counts["truth_on_route"])
+            else:
+                share = (ok, r["frames"])
+            if localized is None or share[0] * localized[1] < localized[0] * share[1]:
+                localized = share
             lost = r["frames"] - ok if lost is None else max(lost, r["frames"] - ok)
             if online:
                 a = online["along_track_m"]
@@ -85,7 +94,9 @@ def main():
             return "-" if v is None else f"{v:.3f}"
 
         runs_note = "" if len(rs) == expected_runs else f" ({len(rs)} runs)"
-        print(f"| {name}{runs_note} | {frames} | {localized} | {lost} | {m(online_mean)} | "
+        localized_cell = "-" if localized is None else (
+            f"{localized[0]}" if localized[1] == frames else f"{localized[0]} of {localized[1]}")
+        print(f"| {name}{runs_note} | {frames} | {localized_cell} | {lost} | {m(online_mean)} | "
               f"{m(online_max)} | {m(pnp_mean)} | {m(pnp_max)} | "
               f"{'-' if within is None else f'{100 * within:.1f} %'} | {fps:.1f} | {mb:.0f} | "
               f"{'-' if calibration is None else f'{100 * calibration:.1f} %'} |")

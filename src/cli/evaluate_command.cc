@@ -74,6 +74,10 @@ int RunEvaluate(int argc, char** argv) {
   app.add_option("--projection-window-m", inputs.evaluate.projection_window_m,
                  "Route part (+-) around the truth's s that estimates are projected onto")
       ->capture_default_str();
+  app.add_option("--on-route-m", inputs.evaluate.on_route_m,
+                 "Frames whose truth is beyond the route's ends or farther than this beside it "
+                 "are counted as off the route (not localizing them is right)")
+      ->capture_default_str();
   app.add_option("--report", report_path, "Write an HTML report (plots in <name>_files/)");
   app.add_option("--json", json_path, "Write all metrics as JSON");
   app.add_option("--errors", errors_path,

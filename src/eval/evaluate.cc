@@ -165,6 +165,8 @@ void EvaluateOptions::Check() const {
                max_gap_s);
   EPILOC_CHECK(std::isfinite(projection_window_m) && projection_window_m > 0.0,
                "projection window must be > 0 m, got {}", projection_window_m);
+  EPILOC_CHECK(std::isfinite(on_route_m) && on_route_m >= 0.0, "--on-route-m must be >= 0, got {}",
+               on_route_m);
 }
 
 const MethodEvaluation* Evaluation::Find(const std::string& method) const {
@@ -217,8 +219,17 @@ Evaluation Evaluate(const ResultTable& result,
     m.method = row.method;
     ++m.rows;
     ++m.by_status[static_cast<size_t>(row.status)];
-    if (row.status != ResultStatus::kOk) continue;
     const auto match = matcher.Find(row);
+    if (match) {
+      // Where the vehicle really was: on the surveyed route, or before / after / beside it.
+      const RouteProjection t = route.ProjectNear(enu.ToEnu(match->position),
+                                                  eval.truth_s_m[match->nearest], window);
+      const bool on_route = t.within && std::abs(t.cross_track_m) <= options.on_route_m;
+      const bool ok = row.status == ResultStatus::kOk;
+      ++(on_route ? m.truth_on_route : m.truth_off_route);
+      if (ok) ++(on_route ? m.ok_on_route : m.ok_off_route);
+    }
+    if (row.status != ResultStatus::kOk) continue;
     if (!match) {
       ++m.unmatched;
       m.unmatched_frames.push_back(row.frame);

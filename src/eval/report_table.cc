@@ -124,6 +124,11 @@ std::vector<TableRow> AlongTrackRows(const Evaluation& eval) {
   }
   counts.push_back({" unmatched", [](const MethodEvaluation& m) { return m.unmatched; }});
   counts.push_back({" evaluated", [](const MethodEvaluation& m) { return m.evaluated(); }});
+  counts.push_back({" on route", [](const MethodEvaluation& m) { return m.truth_on_route; }});
+  counts.push_back({"  localized", [](const MethodEvaluation& m) { return m.ok_on_route; }});
+  counts.push_back(
+      {" off route", [](const MethodEvaluation& m) { return m.truth_off_route; }});
+  counts.push_back({"  localized", [](const MethodEvaluation& m) { return m.ok_off_route; }});
   for (const auto& [label, get] : counts) {
     TableRow row{label, {}};
     for (const auto& m : eval.methods) row.cells.push_back(std::to_string(get(m)));
@@ -216,7 +221,11 @@ std::string EvaluationJson(const Evaluation& eval) {
     nlohmann::json counts = {{"rows", m.rows},
                              {"unmatched", m.unmatched},
                              {"evaluated", m.evaluated()},
-                             {"not_localized", m.not_localized()}};
+                             {"not_localized", m.not_localized()},
+                             {"truth_on_route", m.truth_on_route},
+                             {"ok_on_route", m.ok_on_route},
+                             {"truth_off_route", m.truth_off_route},
+                             {"ok_off_route", m.ok_off_route}};
     for (size_t s = 0; s < StatusNames().size(); ++s) counts[StatusNames()[s]] = m.by_status[s];
     nlohmann::json unmatched = nlohmann::json::array();
     for (size_t i = 0; i < m.unmatched_frames.size(); ++i) {

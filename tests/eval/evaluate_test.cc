@@ -140,6 +140,39 @@ TEST(Evaluate, CountsUnmatchedAndNotLocalizedFramesPerMethod) {
   EXPECT_NE(eval.warnings[1].find("dtw_free: 2 of 3"), std::string::npos) << eval.warnings[1];
 }
 
+// Frames the vehicle drove before, beside or after the surveyed route are counted apart: there
+// lost / off_route is the right answer (issue 16: the localized share of a query that leaves the
+// route).
+TEST(Evaluate, CountsFramesWhoseTruthIsOffTheRouteApart) {
+  // Truth along x: 3 m before the route's start, on it (2 frames), 3 m and 8 m beside it at the
+  // corner, 4 m beyond its end (frames 0..5 at t = 0..5 s).
+  const PositionTrack truth = TrackFromEnu(
+      {V(-3, 0, 0), V(2, 0, 0), V(10, 5, 0), V(13, 5, 0), V(18, 5, 0), V(10, 14, 0)},
+      {0, 1, 2, 3, 4, 5}, true);
+  ResultTable result;
+  result.path = "r.csv";
+  result.rows.push_back(OkRow("online", 0, 0.0, V(0, 0, 0)));                // off (before), ok
+  result.rows.push_back(OkRow("online", 1, 1.0, V(2, 0, 0)));                // on, ok
+  result.rows.push_back(StatusRow("online", 2, 2.0, ResultStatus::kLost));   // on, lost
+  result.rows.push_back(OkRow("online", 3, 3.0, V(10, 5, 0)));               // 3 m beside: on
+  result.rows.push_back(StatusRow("online", 4, 4.0, ResultStatus::kOffRoute));  // 8 m beside
+  result.rows.push_back(StatusRow("online", 5, 5.0, ResultStatus::kOffRoute));  // beyond the end
+  EvaluateOptions options;
+  const Evaluation eval = Evaluate(result, truth, LRoute(), options);
+  const MethodEvaluation& m = *eval.Find("online");
+  EXPECT_EQ(m.truth_on_route, 3);
+  EXPECT_EQ(m.ok_on_route, 2);
+  EXPECT_EQ(m.truth_off_route, 3);
+  EXPECT_EQ(m.ok_off_route, 1);
+  // A wider band takes the frame 8 m beside the route in.
+  options.on_route_m = 10.0;
+  const MethodEvaluation& wide = *Evaluate(result, truth, LRoute(), options).Find("online");
+  EXPECT_EQ(wide.truth_on_route, 4);
+  EXPECT_EQ(wide.truth_off_route, 2);
+  options.on_route_m = -1.0;
+  EXPECT_THROW(Evaluate(result, truth, LRoute(), options), Error);
+}
+
 TEST(Evaluate, FrameAssociationMatchesByNumber) {
   ResultTable result;
   result.path = "r.csv";

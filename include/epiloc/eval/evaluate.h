@@ -47,6 +47,11 @@ struct EvaluateOptions {
   Association association = Association::kAuto;  // how rows find their ground truth
   double max_gap_s = 0.25;             // time association: ground truth further away = unmatched
   double projection_window_m = 200.0;  // half-width of the route part projected onto, metres
+  // A frame whose ground truth lies beyond the route's ends, or farther than this beside it, is
+  // off the surveyed route: there `lost` or `off_route` is the right answer, and the counts
+  // (MethodEvaluation::truth_off_route) keep such frames apart from those a method should
+  // localize. 5 m: a lane's offset from the survey's line and the width of a carriageway.
+  double on_route_m = 5.0;
 
   // Throws Error naming the invalid field.
   void Check() const;
@@ -93,6 +98,10 @@ struct MethodEvaluation {
   std::vector<frame_t> unmatched_frames;  // their frame numbers (kInvalidFrame if none)
   std::vector<double> unmatched_times_s;  // their times
   std::vector<FrameError> frames;         // evaluated = ok and matched, by time
+  // Rows with ground truth (any status), by where the truth is: on the surveyed route or off it
+  // (EvaluateOptions::on_route_m), and how many of each have status ok.
+  int64_t truth_on_route = 0, truth_off_route = 0;
+  int64_t ok_on_route = 0, ok_off_route = 0;
   ErrorStatistics along_track, cross_track, horizontal, vertical, error_3d;
   ErrorStatistics rotation;       // degrees, over the frames with a rotation error (count may be 0)
   Calibration along_calibration;  // |along-track error| <= 2 sigma_along_m
