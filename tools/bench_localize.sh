@@ -67,7 +67,7 @@ for i, row in enumerate(frames[1:]):
 PY
 feeder=$!
 "$epiloc" localize --db "$work/route.sqlite" --drive "$live" --follow --idle-timeout-s 3 \
-  --threads "$threads" --out "$work/live.csv" > /dev/null 2> "$work/live.log"
+  --threads "$threads" --out "$work/live.csv" > "$work/live.log" 2>&1
 wait "$feeder"
 latency=$(grep -oE 'latency p50 [0-9]+ ms, p95 [0-9]+ ms, max [0-9]+ ms' "$work/live.log" | head -1)
 echo "  follow  10 Hz input (77 frames written as they are recorded): $latency (target p95 <= 100 ms)"
