@@ -59,6 +59,10 @@ int RunLocalize(int argc, char** argv) {
   app.add_flag("--follow", follow,
                "The drive is still being recorded: rows appended to its frames CSV (and GNSS "
                "file) are localized as they appear; ends after --idle-timeout-s without a frame");
+  app.add_option("--max-latency-s", options.max_latency_s,
+                 "Live input: skip a frame that would come out this late while a newer one is "
+                 "waiting (rows with status skipped); 0 tracks every frame")
+      ->capture_default_str();
   app.add_option("--idle-timeout-s", idle_timeout_s,
                  "With --follow: stop after this many seconds without a new frame")
       ->check(CLI::PositiveNumber)
@@ -269,6 +273,10 @@ int RunLocalize(int argc, char** argv) {
                run.num_frames ? 1e3 * run.extraction_seconds / run.num_frames : 0.0,
                run.num_frames ? 1e3 * run.tracking_seconds / run.num_frames : 0.0,
                1e3 * run.latency_p50_s, 1e3 * run.latency_p95_s, 1e3 * run.latency_max_s);
+  if (run.num_skipped > 0) {
+    std::fprintf(summary, "%s: %d late frames skipped (--max-latency-s %.3g)\n",
+                 source->name().c_str(), run.num_skipped, options.max_latency_s);
+  }
   if (run.num_frames > 0) {
     const double n = run.num_frames;
     const StageSeconds& st = run.stages;

@@ -121,6 +121,8 @@ const char* TrackStatusName(TrackStatus status) {
       return "lost";
     case TrackStatus::kOffRoute:
       return "off_route";
+    case TrackStatus::kSkipped:
+      return "skipped";
   }
   return "?";
 }
@@ -151,6 +153,8 @@ void LocalizeOptions::Check() const {
   EPILOC_CHECK(max_sigma_m > 0, "localize: max_sigma_m must be > 0");
   EPILOC_CHECK(route_end_margin_m >= 0, "localize: route_end_margin_m must be >= 0");
   EPILOC_CHECK(max_focal_ratio >= 0, "localize: max_focal_ratio must be >= 0");
+  EPILOC_CHECK(std::isfinite(max_latency_s) && max_latency_s >= 0,
+               "localize: max_latency_s must be >= 0");
   EPILOC_CHECK(survey_sigma_m >= 0 && std::isfinite(survey_sigma_m),
                "localize: survey_sigma_m must be finite and >= 0");
 }

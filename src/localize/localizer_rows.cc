@@ -71,8 +71,16 @@ std::string Flags(const FrameEstimate& est) {
   return flags;
 }
 
-ResultStatus LostStatus(bool off_route) {
-  return off_route ? ResultStatus::kOffRoute : ResultStatus::kLost;
+// The status of a frame's rows that give no position.
+ResultStatus NotLocalized(TrackStatus status) {
+  switch (status) {
+    case TrackStatus::kOffRoute:
+      return ResultStatus::kOffRoute;
+    case TrackStatus::kSkipped:
+      return ResultStatus::kSkipped;
+    default:
+      return ResultStatus::kLost;
+  }
 }
 
 }  // namespace
@@ -87,14 +95,13 @@ const std::vector<std::string>& Localizer::ExtraColumns() {
 std::vector<ResultRow> Localizer::Rows(const FrameEstimate& est) const {
   const Impl& impl = *impl_;
   const LocalizeOptions& options = impl.options;
-  const bool off_route = est.status == TrackStatus::kOffRoute;
   std::vector<ResultRow> rows;
   if (options.all_methods) {
     if (est.gnss && est.gnss_on_route) {
       rows.push_back(MakeRow(est.frame, est.timestamp_s, "gps", ResultStatus::kOk,
                              est.gnss_on_route->s_m, kInvalidFrame, est.gnss, NAN, -1));
     } else {
-      rows.push_back(MakeRow(est.frame, est.timestamp_s, "gps", ResultStatus::kLost, std::nullopt,
+      rows.push_back(MakeRow(est.frame, est.timestamp_s, "gps", NotLocalized(est.status), std::nullopt,
                              kInvalidFrame, std::nullopt, NAN, -1));
     }
     if (est.nearest_db_index >= 0) {
@@ -102,7 +109,7 @@ std::vector<ResultRow> Localizer::Rows(const FrameEstimate& est) const {
       rows.push_back(MakeRow(est.frame, est.timestamp_s, "nearest", ResultStatus::kOk, nearest.s_m,
                              nearest.frame, nearest.position, NAN, est.nearest_inliers));
     } else {
-      rows.push_back(MakeRow(est.frame, est.timestamp_s, "nearest", LostStatus(off_route),
+      rows.push_back(MakeRow(est.frame, est.timestamp_s, "nearest", NotLocalized(est.status),
                              std::nullopt, kInvalidFrame, std::nullopt, NAN, -1));
     }
   }
@@ -116,7 +123,7 @@ std::vector<ResultRow> Localizer::Rows(const FrameEstimate& est) const {
       r.extra[kFlags] = Flags(est);
       rows.push_back(std::move(r));
     } else {
-      rows.push_back(MakeRow(est.frame, est.timestamp_s, "online", LostStatus(off_route),
+      rows.push_back(MakeRow(est.frame, est.timestamp_s, "online", NotLocalized(est.status),
                              std::nullopt, kInvalidFrame, std::nullopt, NAN, -1));
     }
   }
@@ -124,7 +131,7 @@ std::vector<ResultRow> Localizer::Rows(const FrameEstimate& est) const {
   // pnp: the refined 6-DoF pose; where the structure is too thin or the pose disagrees with the
   // sequence, the online estimate, flagged in the `refine` column.
   if (!ok || !est.refined) {
-    rows.push_back(MakeRow(est.frame, est.timestamp_s, "pnp", LostStatus(off_route), std::nullopt,
+    rows.push_back(MakeRow(est.frame, est.timestamp_s, "pnp", NotLocalized(est.status), std::nullopt,
                            kInvalidFrame, std::nullopt, NAN, -1));
     return rows;
   }
@@ -194,7 +201,7 @@ std::vector<ResultRow> Localizer::OfflineRows() const {
                       path.db_index[i] >= 0;
       if (!ok) {
         for (const std::string& name : {dtw_name, fit_name}) {
-          rows.push_back(MakeRow(rec.frame, rec.timestamp_s, name, LostStatus(rec.off_route),
+          rows.push_back(MakeRow(rec.frame, rec.timestamp_s, name, NotLocalized(rec.off_route ? TrackStatus::kOffRoute : TrackStatus::kLost),
                                  std::nullopt, kInvalidFrame, std::nullopt, NAN, -1));
         }
         continue;

@@ -9,6 +9,8 @@
 #include <mutex>
 #include <thread>
 
+#include <fmt/format.h>
+
 #include "epiloc/core/error.h"
 
 namespace epiloc {
@@ -44,6 +46,12 @@ class PrepareQueue {
     }
     changed_.notify_all();
     producer_.join();
+  }
+
+  // Whether a newer frame has arrived (read from the source) behind the one popped last.
+  bool HasWaiting() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return !queue_.empty();
   }
 
   // The next prepared frame's future; none at the end of the input. Rethrows a source error.
@@ -113,6 +121,26 @@ LocalizeRun LocalizeStream(Localizer& localizer,
     PrepareQueue queue(localizer, source, std::max(1, localizer.options().num_threads));
     while (std::optional<std::future<PreparedFrame>> next = queue.Pop()) {
       const PreparedFrame prepared = next->get();
+      const double max_latency_s = localizer.options().max_latency_s;
+      if (max_latency_s > 0 && NowSeconds() - prepared.arrival_s >= max_latency_s &&
+          queue.HasWaiting()) {
+        FrameEstimate skipped;
+        skipped.frame = prepared.frame;
+        skipped.timestamp_s = prepared.timestamp_s;
+        skipped.status = TrackStatus::kSkipped;
+        skipped.gnss = prepared.gnss;
+        skipped.extraction_seconds = prepared.extraction_seconds;
+        skipped.stages = prepared.stages;
+        skipped.note = fmt::format("skipped: {:.0f} ms late, a newer frame waiting",
+                                   1e3 * (NowSeconds() - prepared.arrival_s));
+        sink(&skipped, localizer.Rows(skipped));
+        ++run.num_frames;
+        ++run.num_skipped;
+        run.extraction_seconds += skipped.extraction_seconds;
+        run.stages += skipped.stages;
+        if (progress) progress(run.num_frames, std::max<int64_t>(total, run.num_frames));
+        continue;
+      }
       const FrameEstimate estimate = localizer.Track(prepared);
       sink(&estimate, localizer.Rows(estimate));
       latencies.push_back(NowSeconds() - prepared.arrival_s);

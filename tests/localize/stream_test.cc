@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -87,6 +88,69 @@ TEST(Stream, OfflineRowsNeedTheRecording) {
   options.record_offline = false;
   Localizer localizer(dir + "/route.sqlite", drive.camera, options);
   EXPECT_THAT(ErrorOf([&] { localizer.OfflineRows(); }), ::testing::HasSubstr("record_offline"));
+}
+
+// Live input that falls behind: frames that are late with a newer one waiting are skipped
+// (rows with status skipped), the newest is always tracked; with max_latency_s 0 none is.
+class LateSource : public FrameSource {
+ public:
+  explicit LateSource(const std::string& drive_dir)
+      : drive_(LoadDrive(drive_dir)), reader_(drive_), gnss_(PositionFrames(drive_, drive_.gnss)) {}
+  const Camera& camera() const override { return drive_.camera; }
+  std::string name() const override { return "late"; }
+  std::optional<QueryFrame> Next() override {
+    if (next_ >= drive_.frames.size()) return std::nullopt;
+    const size_t i = next_++;
+    QueryFrame frame;
+    frame.frame = drive_.frames[i].frame;
+    frame.timestamp_s = drive_.frames[i].timestamp_s;
+    frame.image = reader_.ReadGrey(i);
+    if (gnss_.per_frame[i]) frame.gnss = gnss_.per_frame[i]->position;
+    // Every frame arrived a second ago: all of them are late.
+    frame.arrival_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+            .count() -
+        1.0;
+    return frame;
+  }
+
+ private:
+  Drive drive_;
+  FrameReader reader_;
+  FramePositions gnss_;
+  size_t next_ = 0;
+};
+
+TEST(Stream, LateFramesAreSkippedWhenANewerOneWaits) {
+  const std::string dir = Route();
+  for (const double max_latency_s : {0.5, 0.0}) {
+    LateSource source(dir + "/query");
+    LocalizeOptions options;
+    options.max_latency_s = max_latency_s;
+    Localizer localizer(dir + "/route.sqlite", source.camera(), options);
+    std::map<frame_t, ResultStatus> online;
+    frame_t last = kInvalidFrame;
+    const LocalizeRun run = LocalizeStream(
+        localizer, source, [&](const FrameEstimate* estimate, const std::vector<ResultRow>& rows) {
+          ASSERT_NE(estimate, nullptr);
+          for (const ResultRow& row : rows) {
+            if (row.method == "online") online[row.frame] = row.status;
+          }
+          last = estimate->frame;
+        });
+    const int num_frames = static_cast<int>(LoadDrive(dir + "/query").frames.size());
+    ASSERT_EQ(static_cast<int>(online.size()), num_frames) << "every frame has its rows";
+    int skipped = 0;
+    for (const auto& [frame, status] : online) skipped += status == ResultStatus::kSkipped;
+    EXPECT_EQ(skipped, run.num_skipped);
+    if (max_latency_s > 0) {
+      // The source delivers at once: while a frame is tracked the next ones wait.
+      EXPECT_GT(run.num_skipped, num_frames / 2) << "of " << num_frames;
+      EXPECT_NE(online[last], ResultStatus::kSkipped) << "the newest frame is tracked";
+    } else {
+      EXPECT_EQ(run.num_skipped, 0);
+    }
+  }
 }
 
 TEST(Stream, MemoryStaysFlatOverALongStream) {

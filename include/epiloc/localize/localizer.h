@@ -95,6 +95,12 @@ struct LocalizeOptions {
   double max_focal_ratio = 1.0;
   // Strongest query features used.
   int max_query_features = 2000;
+  // Live input (LocalizeStream): a frame whose rows would come this many seconds or more after
+  // its arrival, with a newer frame already waiting, is skipped (rows with status skipped): a
+  // position that late is worth less than the current one, and the tracker catches up instead
+  // of queueing every later frame behind a slow one (the first frame, a re-initialisation).
+  // 0 tracks every frame (recorded drives; offline rows then cover every frame).
+  double max_latency_s = 0.0;
   // Threads for pair evaluation inside Track (0 = one per core). Extraction ahead of the tracker
   // is the caller's (LocalizeStream uses the same number).
   int num_threads = 0;
@@ -168,7 +174,9 @@ struct PreparedFrame {
   StageSeconds stages;  // read, undistort, sift, retrieval
 };
 
-enum class TrackStatus { kOk, kLost, kOffRoute };
+// kSkipped: not tracked at all (LocalizeStream skipped the frame: it was late and a newer one
+// was waiting, LocalizeOptions::max_latency_s).
+enum class TrackStatus { kOk, kLost, kOffRoute, kSkipped };
 const char* TrackStatusName(TrackStatus status);
 
 // What Track reports for one frame, at once.

@@ -22,6 +22,7 @@ struct LocalizeRun {
   ResultTable results;  // every row (Localize only; LocalizeStream hands rows to its sink)
   int num_frames = 0;
   int num_localized_online = 0;
+  int num_skipped = 0;  // late frames skipped (LocalizeOptions::max_latency_s)
   int num_reinitialisations = 0;
   int64_t num_pairs = 0;
   bool refined = false;         // pnp rows were written (the database has structure)
@@ -34,7 +35,7 @@ struct LocalizeRun {
   double extraction_seconds = 0.0;  // undistortion, SIFT, retrieval descriptor
   double tracking_seconds = 0.0;    // matching, epipoles, DTW, V-fit, refinement
   StageSeconds stages;              // the same split by stage, summed over frames
-  // Per frame, from the frame's arrival (FrameSource) to its rows handed to the sink.
+  // Per tracked frame, from the frame's arrival (FrameSource) to its rows handed to the sink.
   double latency_p50_s = 0.0, latency_p95_s = 0.0, latency_max_s = 0.0;
 };
 
