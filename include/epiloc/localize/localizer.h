@@ -133,6 +133,7 @@ struct QueryFrame {
   cv::Mat image;
   std::optional<Geodetic> gnss;  // GNSS fix at timestamp_s, when there is one
   double arrival_s = 0.0;        // when the frame became available (steady clock, for latency)
+  std::string where;  // for messages: "<frames.csv>:<line>" of a drive's frame ("" if none)
 };
 
 // A frame after feature extraction (Localizer::Prepare), ready for Track.
@@ -145,6 +146,7 @@ struct PreparedFrame {
   Eigen::VectorXf global;                  // retrieval descriptor (empty without an index)
   std::shared_ptr<DescriptorIndex> index;  // query index (pair-by-pair matching only)
   double extraction_seconds = 0.0;
+  std::string where;  // QueryFrame::where
 };
 
 enum class TrackStatus { kOk, kLost, kOffRoute };
