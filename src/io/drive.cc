@@ -143,6 +143,7 @@ std::vector<FrameRecord> ReadFrames(const JsonObject& manifest,
     drive->video = f.String("video");
     if (f.Has("csv")) {
       where = ResolvePath(drive->dir, f.String("csv"));
+      drive->frames_csv = where;
       frames = ReadFramesCsv(where, drive->dir, true);
       const std::string problem = FileProblem(drive->VideoPath());
       if (!problem.empty()) Throw("{}: video file {}", drive->VideoPath(), problem);
@@ -152,6 +153,7 @@ std::vector<FrameRecord> ReadFrames(const JsonObject& manifest,
     }
   } else if (f.Has("csv")) {
     where = ResolvePath(drive->dir, f.String("csv"));
+    drive->frames_csv = where;
     frames = ReadFramesCsv(where, drive->dir, false);
   } else {
     if (!has_times && !has_fps) {
@@ -414,6 +416,7 @@ DriveFollower::DriveFollower(const std::string& dir) : impl_(std::make_unique<Im
   impl_->origin = m.origin;
   impl_->time_offset_s = m.time_offset_s;
   impl_->manifest = std::move(m.drive);
+  impl_->manifest.frames_csv = impl_->frames_csv;
 }
 
 DriveFollower::~DriveFollower() = default;

@@ -48,13 +48,90 @@ std::string VideoFrameHash(const std::string& video_hash, frame_t frame) {
   return HashBytes(text.data(), text.size());
 }
 
+std::string SizeProblem(const cv::Mat& image, const Camera& camera) {
+  if (image.cols == camera.width && image.rows == camera.height) return "";
+  return fmt::format("image size {}x{} differs from the calibration's {}x{}", image.cols,
+                     image.rows, camera.width, camera.height);
+}
+
+// The image at `path` as ReadImageFile returns it, or an empty image and *problem set to what is
+// wrong ("image file not found", "cannot decode (truncated PNG: ...)", ...).
+cv::Mat DecodeImageFile(const std::string& path,
+                        const Camera& camera,
+                        bool colour,
+                        std::string* problem) {
+  std::error_code error;
+  const auto status = std::filesystem::status(path, error);
+  if (!std::filesystem::exists(status)) {
+    *problem = "image file not found";
+    return cv::Mat();
+  }
+  if (std::filesystem::is_directory(status)) {
+    *problem = "is a folder, not an image file";
+    return cv::Mat();
+  }
+  if (!std::filesystem::is_regular_file(status)) {
+    *problem = "not a regular file (a FIFO or device), not an image file";
+    return cv::Mat();
+  }
+  std::string data;
+  {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+      *problem = "cannot open image file";
+      return cv::Mat();
+    }
+    data.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    if (in.bad()) {
+      *problem = "read error";
+      return cv::Mat();
+    }
+  }
+  const std::string truncation = ImageTruncation(data);
+  if (!truncation.empty()) {
+    *problem = fmt::format("cannot decode ({})", truncation);
+    return cv::Mat();
+  }
+  // IMREAD_UNCHANGED keeps 16-bit data, so the conversion below is ours and explicit. A JPEG
+  // (always 8-bit) wanted grey is decoded grey: libjpeg then skips the colour planes' inverse DCT,
+  // upsampling and colour conversion, half the decoding time of a colour 1080p frame.
+  const bool jpeg = data.size() >= 2 && static_cast<uint8_t>(data[0]) == 0xFF &&
+                    static_cast<uint8_t>(data[1]) == 0xD8;
+  cv::Mat image = cv::imdecode(
+      cv::Mat(1, static_cast<int>(std::min<size_t>(data.size(), INT32_MAX)), CV_8U, data.data()),
+      jpeg && !colour ? cv::IMREAD_GRAYSCALE : cv::IMREAD_UNCHANGED);
+  if (image.empty()) {
+    *problem = "cannot decode (not a PNG or JPEG, or corrupt)";
+    return cv::Mat();
+  }
+  *problem = SizeProblem(image, camera);
+  if (!problem->empty()) return cv::Mat();
+  image = ConvertChannels(ToEightBit(image), colour);
+  if (image.empty()) *problem = "unsupported number of image channels";
+  return image;
+}
+
+// Reads a frame's image file; errors name the frames CSV line when `where` is given:
+// "<where>: image <name>: <problem>", else "<path>: <problem>".
+cv::Mat ReadFrameImageFile(const std::string& path,
+                           const std::string& where,
+                           const std::string& name,
+                           const Camera& camera,
+                           bool colour) {
+  std::string problem;
+  cv::Mat image = DecodeImageFile(path, camera, colour, &problem);
+  if (!problem.empty()) {
+    if (where.empty()) Throw("{}: {}", path, problem);
+    Throw("{}: image {}: {}", where, Printable(name), problem);
+  }
+  return image;
+}
+
 }  // namespace
 
 void CheckImageSize(const cv::Mat& image, const Camera& camera, const std::string& path) {
-  if (image.cols != camera.width || image.rows != camera.height) {
-    Throw("{}: image size {}x{} differs from the calibration's {}x{}", path, image.cols, image.rows,
-          camera.width, camera.height);
-  }
+  const std::string problem = SizeProblem(image, camera);
+  if (!problem.empty()) Throw("{}: {}", path, problem);
 }
 
 std::string ImageTruncation(const std::string& data) {
@@ -66,12 +143,12 @@ std::string ImageTruncation(const std::string& data) {
       const uint64_t length = byte(at) << 24 | byte(at + 1) << 16 | byte(at + 2) << 8 | byte(at + 3);
       const std::string type = Printable(data.substr(at + 4, 4));
       if (at + 12 + length > data.size()) {
-        return fmt::format("truncated PNG (chunk {} ends past the end of the file)", type);
+        return fmt::format("truncated PNG: chunk {} ends past the end of the file", type);
       }
       if (type == "IEND") return "";
       at += 12 + length;
     }
-    return "truncated PNG (no IEND chunk)";
+    return "truncated PNG: no IEND chunk";
   }
   if (data.size() >= 2 && static_cast<uint8_t>(data[0]) == 0xFF &&
       static_cast<uint8_t>(data[1]) == 0xD8) {
@@ -79,7 +156,7 @@ std::string ImageTruncation(const std::string& data) {
     const size_t end = data.find_last_not_of('\0');
     if (end == std::string::npos || end < 3 || static_cast<uint8_t>(data[end]) != 0xD9 ||
         static_cast<uint8_t>(data[end - 1]) != 0xFF) {
-      return "truncated JPEG (no end-of-image marker)";
+      return "truncated JPEG: no end-of-image marker";
     }
     return "";
   }
@@ -94,42 +171,20 @@ void QuietLibraryLogging() {
 }
 
 cv::Mat ReadImageFile(const std::string& path, const Camera& camera, bool colour) {
-  std::error_code error;
-  const auto status = std::filesystem::status(path, error);
-  if (!std::filesystem::exists(status)) Throw("{}: image file not found", path);
-  if (std::filesystem::is_directory(status)) Throw("{}: is a folder, not an image file", path);
-  if (!std::filesystem::is_regular_file(status)) {
-    Throw("{}: not a regular file (a FIFO or device), not an image file", path);
-  }
-  std::string data;
-  {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) Throw("{}: cannot open image", path);
-    data.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-    if (in.bad()) Throw("{}: read error", path);
-  }
-  const std::string truncation = ImageTruncation(data);
-  if (!truncation.empty()) Throw("{}: cannot read image: {}", path, truncation);
-  // IMREAD_UNCHANGED keeps 16-bit data, so the conversion below is ours and explicit. A JPEG
-  // (always 8-bit) wanted grey is decoded grey: libjpeg then skips the colour planes' inverse DCT,
-  // upsampling and colour conversion, half the decoding time of a colour 1080p frame.
-  const bool jpeg = data.size() >= 2 && static_cast<uint8_t>(data[0]) == 0xFF &&
-                    static_cast<uint8_t>(data[1]) == 0xD8;
-  cv::Mat image = cv::imdecode(cv::Mat(1, static_cast<int>(std::min<size_t>(data.size(), INT32_MAX)),
-                                       CV_8U, data.data()),
-                               jpeg && !colour ? cv::IMREAD_GRAYSCALE : cv::IMREAD_UNCHANGED);
-  if (image.empty()) Throw("{}: cannot read image", path);
-  CheckImageSize(image, camera, path);
-  image = ConvertChannels(ToEightBit(image), colour);
-  if (image.empty()) Throw("{}: unsupported number of image channels", path);
-  return image;
+  return ReadFrameImageFile(path, "", "", camera, colour);
+}
+
+cv::Mat ReadFrameImage(const Drive& drive, const FrameRecord& frame, bool colour) {
+  return ReadFrameImageFile(drive.ImagePath(frame), drive.FrameWhere(frame), frame.image,
+                            drive.camera, colour);
 }
 
 FrameReader::FrameReader(const Drive& drive)
     : dir_(drive.dir),
       camera_(drive.camera),
       frames_(drive.frames),
-      video_path_(drive.VideoPath()) {}
+      video_path_(drive.VideoPath()),
+      frames_csv_(drive.frames_csv) {}
 
 cv::Mat FrameReader::ReadGrey(size_t index) const { return Read(index, false); }
 
@@ -140,7 +195,10 @@ cv::Mat FrameReader::Read(size_t index, bool colour) const {
     Throw("frame index {} out of range (the drive has {} frames)", index, frames_.size());
   }
   if (video_path_.empty()) {
-    return ReadImageFile(ResolvePath(dir_, frames_[index].image), camera_, colour);
+    const FrameRecord& frame = frames_[index];
+    const std::string where =
+        frames_csv_.empty() || frame.line <= 0 ? "" : Where(frames_csv_, frame.line);
+    return ReadFrameImageFile(ResolvePath(dir_, frame.image), where, frame.image, camera_, colour);
   }
   const std::string& path = video_path_;
   cv::Mat image = ReadVideoFrame(frames_[index].frame);

@@ -59,6 +59,7 @@ bool FramesCsvRows::Next(FrameRecord* out, bool appended) {
   record.frame = csv_.GetInt("frame");
   record.timestamp_s = csv_.GetDouble("timestamp_s");
   if (csv_.HasColumn("image")) record.image = csv_.Get("image");
+  record.line = csv_.line();
   if (record.frame < 0) Throw("{}: frame number {} is negative", csv_.where(), record.frame);
   const auto [it, inserted] = line_of_frame_.emplace(record.frame, csv_.line());
   if (!inserted) {

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "epiloc/core/error.h"
 #include "epiloc/io/drive.h"
 #include "io_internal.h"
 
@@ -53,6 +54,11 @@ bool LidarScan::operator==(const LidarScan& o) const {
 
 std::string Drive::ImagePath(const FrameRecord& frame) const {
   return ResolvePath(dir, frame.image);
+}
+
+std::string Drive::FrameWhere(const FrameRecord& frame) const {
+  if (frames_csv.empty() || frame.line <= 0) return "";
+  return Where(frames_csv, frame.line);
 }
 
 std::string Drive::VideoPath() const { return ResolvePath(dir, video); }

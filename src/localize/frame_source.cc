@@ -43,6 +43,7 @@ std::optional<QueryFrame> DriveFrameSource::Next() {
   frame.frame = drive_.frames[i].frame;
   frame.timestamp_s = drive_.frames[i].timestamp_s;
   frame.arrival_s = NowSeconds();
+  frame.where = drive_.FrameWhere(drive_.frames[i]);
   // The localizer works on grey images: reading them grey spares a colour conversion later.
   frame.image = reader_->ReadGrey(i);
   frame.read_seconds = NowSeconds() - frame.arrival_s;
@@ -83,8 +84,9 @@ std::optional<QueryFrame> FollowDriveSource::Next() {
   frame.timestamp_s = record.timestamp_s;
   // Rows read in one poll arrived together, however long the earlier ones of them take.
   frame.arrival_s = polled_at_s_;
+  frame.where = manifest.FrameWhere(record);
   const double read_start = NowSeconds();
-  frame.image = ReadImageFile(manifest.ImagePath(record), manifest.camera, false);
+  frame.image = ReadFrameImage(manifest, record, false);
   frame.read_seconds = NowSeconds() - read_start;
   if (use_gnss_) {
     if (const std::optional<PositionSample> fix = follower_.GnssAt(record.timestamp_s)) {

@@ -477,6 +477,7 @@ PreparedFrame Localizer::Prepare(const QueryFrame& frame) const {
   out.timestamp_s = frame.timestamp_s;
   out.gnss = frame.gnss;
   out.arrival_s = frame.arrival_s;
+  out.where = frame.where;
   EPILOC_CHECK(!frame.image.empty(), "frame {}: empty image", frame.frame);
   SiftOptions sift = impl.options.sift;
   sift.max_num_features = impl.options.max_query_features;

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "epiloc/core/error.h"
 
@@ -121,6 +122,19 @@ LocalizeRun LocalizeStream(Localizer& localizer,
     PrepareQueue queue(localizer, source, std::max(1, localizer.options().num_threads));
     while (std::optional<std::future<PreparedFrame>> next = queue.Pop()) {
       const PreparedFrame prepared = next->get();
+      if (prepared.features.size() == 0) {
+        std::vector<frame_t>& none = run.frames_without_features;
+        none.push_back(prepared.frame);
+        if (none.size() <= static_cast<size_t>(kFeaturelessWarnings)) {
+          spdlog::warn(
+              "{}frame {} gave no SIFT features (a black, overexposed or textureless "
+              "image){}",
+              prepared.where.empty() ? "" : prepared.where + ": ", prepared.frame,
+              none.size() == static_cast<size_t>(kFeaturelessWarnings)
+                  ? "; further ones are counted at the end"
+                  : "");
+        }
+      }
       const double max_latency_s = localizer.options().max_latency_s;
       if (max_latency_s > 0 && NowSeconds() - prepared.arrival_s >= max_latency_s &&
           queue.HasWaiting()) {
@@ -167,6 +181,15 @@ LocalizeRun LocalizeStream(Localizer& localizer,
   }
   if (localizer.options().record_offline && localizer.options().WantsOffline()) {
     sink(nullptr, localizer.OfflineRows());
+  }
+  if (!run.frames_without_features.empty()) {
+    const auto& none = run.frames_without_features;
+    spdlog::warn(
+        "{} of {} query frames gave no SIFT features (frames {}{}); they cannot be "
+        "localized",
+        none.size(), run.num_frames,
+        fmt::join(none.begin(), none.begin() + std::min<size_t>(none.size(), 10), ", "),
+        none.size() > 10 ? ", ..." : "");
   }
   run.num_reinitialisations = localizer.num_reinitialisations();
   run.num_pairs = localizer.num_pairs();

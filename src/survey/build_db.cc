@@ -27,6 +27,9 @@
 namespace epiloc {
 namespace {
 
+// Frames without features warned about one by one; the summary at the end counts them all.
+constexpr int kFeaturelessWarnings = 3;
+
 struct FrameJob {
   size_t frame_index = 0;  // index into Drive::frames
   PositionSample position;
@@ -326,7 +329,18 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
       summary.frames_added += 1;
       summary.features_added += result.features.size();
       if (result.features.size() == 0) {
-        summary.frames_without_features.push_back(result.frame.frame);
+        std::vector<frame_t>& none = summary.frames_without_features;
+        none.push_back(result.frame.frame);
+        if (none.size() <= static_cast<size_t>(kFeaturelessWarnings)) {
+          const std::string where = drive.FrameWhere(drive.frames[todo[k].frame_index]);
+          spdlog::warn(
+              "{}frame {} gave no SIFT features (a black, overexposed or textureless "
+              "image){}",
+              where.empty() ? "" : where + ": ", result.frame.frame,
+              none.size() == static_cast<size_t>(kFeaturelessWarnings)
+                  ? "; further ones are counted at the end"
+                  : "");
+        }
       }
       {
         std::lock_guard<std::mutex> lock(mutex);

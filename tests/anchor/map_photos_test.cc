@@ -82,7 +82,7 @@ TEST(MapPhotos, TextureAtAPhotographsPoseReproducesIt) {
   cv::Mat difference;
   cv::absdiff(render.image, photo, difference);
   EXPECT_LE(cv::norm(difference, cv::NORM_INF, mask), 1.0);
-  EXPECT_EQ(cv::countNonZero(render.image > 0 & ~mask), 0);  // untextured pixels stay black
+  EXPECT_EQ(cv::countNonZero((render.image > 0) & ~mask), 0);  // untextured pixels stay black
 }
 
 TEST(MapPhotos, RejectsDrivesWithoutCameraOrientations) {

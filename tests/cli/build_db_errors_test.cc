@@ -25,6 +25,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 struct RunResult {
   int exit_code = -1;
@@ -176,6 +177,36 @@ TEST_F(BuildDbErrors, CorruptImageFoundHalfWayIsUndone) {
   ExpectFailure(drive, "0004.png");
 }
 
+// Issue 18 item 10: a truncated PNG is one line naming the frames.csv line and the image as listed
+// there, whether it is the first frame (checked when the drive is loaded), one found half-way
+// through the survey, or a query frame.
+TEST_F(BuildDbErrors, TruncatedImageNamesTheFramesCsvLine) {
+  const auto truncate = [](const fs::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+    in.close();
+    std::ofstream(file, std::ios::binary | std::ios::trunc) << bytes.substr(0, bytes.size() / 2);
+  };
+  const fs::path survey = CopyDrive("truncated_survey");
+  truncate(survey / "images/0004.png");
+  ExpectFailure(survey, (survey / "frames.csv").string() +
+                            ":6: image images/0004.png: cannot decode (truncated PNG: ");
+  const fs::path first = CopyDrive("truncated_first");
+  truncate(first / "images/0000.png");
+  ExpectFailure(first, (first / "frames.csv").string() +
+                           ":2: image images/0000.png: cannot decode (truncated PNG: ");
+
+  const RunResult query =
+      RunEpiloc(fmt::format("localize --refine none --db {} --drive {} --out {}", db_.string(),
+                            survey.string(), (root_ / "query.csv").string()));
+  EXPECT_EQ(query.exit_code, 1) << query.stderr_text;
+  EXPECT_EQ(NumLines(query.stderr_text), 1) << query.stderr_text;
+  EXPECT_THAT(query.stderr_text,
+              HasSubstr("epiloc localize: error: " + (survey / "frames.csv").string() +
+                        ":6: image images/0004.png: cannot decode (truncated PNG: "));
+  EXPECT_FALSE(fs::exists(root_ / "query.csv"));
+}
+
 TEST_F(BuildDbErrors, MalformedCsvLine) {
   const fs::path drive = CopyDrive("bad_csv");
   ReplaceLine(drive / "gnss.csv", 4, "100.25,forty-nine,8.4,110.0");
@@ -259,6 +290,36 @@ TEST_F(BuildDbErrors, FramesWithoutFeaturesAreWarnedAbout) {
                             drive.string(), (root_ / "black.sqlite").string()));
   EXPECT_EQ(result.exit_code, 0) << result.stderr_text;
   EXPECT_THAT(result.stderr_text, HasSubstr("2 of 6 frames gave no SIFT features (frames 2, 3)"));
+  const std::string csv = (drive / "frames.csv").string();
+  EXPECT_THAT(result.stderr_text, HasSubstr(csv + ":4: frame 2 gave no SIFT features"));
+  EXPECT_THAT(result.stderr_text, HasSubstr(csv + ":5: frame 3 gave no SIFT features"));
+}
+
+// Issue 18 item 11 for query frames: the first few featureless frames are named (with their
+// frames.csv line), the rest only counted in one summary line, so a dark drive does not flood.
+TEST_F(BuildDbErrors, QueryFramesWithoutFeaturesAreWarnedAbout) {
+  const fs::path drive = CopyDrive("black_query");
+  for (int i = 1; i < kFrames; ++i) {
+    cv::imwrite((drive / fmt::format("images/{:04d}.png", i)).string(),
+                cv::Mat(240, 320, CV_8UC1, cv::Scalar(0)));
+  }
+  const RunResult result =
+      RunEpiloc(fmt::format("localize --db {} --drive {} --out {}", db_.string(), drive.string(),
+                            (root_ / "black_query.csv").string()));
+  EXPECT_EQ(result.exit_code, 0) << result.stderr_text;
+  const std::string csv = (drive / "frames.csv").string();
+  EXPECT_THAT(result.stderr_text, HasSubstr(csv + ":3: frame 1 gave no SIFT features"));
+  EXPECT_THAT(result.stderr_text, HasSubstr(csv + ":5: frame 3 gave no SIFT features"));
+  EXPECT_THAT(result.stderr_text, HasSubstr("further ones are counted at the end"));
+  EXPECT_THAT(result.stderr_text, Not(HasSubstr("frame 4 gave")));
+  EXPECT_THAT(result.stderr_text,
+              HasSubstr("5 of 6 query frames gave no SIFT features (frames 1, 2, 3, 4, 5)"));
+  int warnings = 0;
+  for (size_t at = 0; (at = result.stderr_text.find("no SIFT features", at)) != std::string::npos;
+       ++at) {
+    ++warnings;
+  }
+  EXPECT_EQ(warnings, 4) << result.stderr_text;
 }
 
 // Issue 18 item 12: a second build of the same drive running at the same time was reported as

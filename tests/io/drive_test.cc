@@ -339,7 +339,7 @@ TEST(LoadDrive, RejectsBadFolders) {
   dir.ExpectLoadError({dir / "images", "frame number 2"});
   std::filesystem::remove(dir / "images/frame_0002.png");
   WriteText(dir / "images/img_0.png", "not a png");
-  dir.ExpectLoadError({dir / "images/img_0.png", "cannot read image"});
+  dir.ExpectLoadError({dir / "images/img_0.png", "cannot decode"});
   dir.manifest()["frames"] = {{"video", "missing.avi"}};
   dir.ExpectLoadError({dir / "missing.avi"});
 }

@@ -91,7 +91,7 @@ TEST(FrameReader, ReportsMissingCorruptAndWrongSizeImages) {
   WriteText(dir / "corrupt.png", "this is not a PNG");
   const FrameReader reader(ImageDrive(dir, {"absent.png", "corrupt.png", "small.png"}));
   ExpectError([&] { reader.ReadGrey(0); }, {dir / "absent.png: image file not found"});
-  ExpectError([&] { reader.ReadColour(1); }, {dir / "corrupt.png: cannot read image"});
+  ExpectError([&] { reader.ReadColour(1); }, {dir / "corrupt.png: cannot decode"});
   ExpectError([&] { reader.ReadGrey(2); }, {dir / "small.png", "38x30", "40x30"});
   ExpectError([&] { reader.ReadGrey(3); }, {"out of range"});
 }
@@ -126,6 +126,41 @@ TEST(FrameReader, TruncatedImagesFoldersAndFifos) {
   ASSERT_EQ(::mkfifo((dir / "fifo.png").c_str(), 0600), 0);
   ExpectError([&] { ReadImageFile(dir / "fifo.png", camera, false); }, {"FIFO"});
   ExpectError([&] { ReadImageFile(dir / "absent.png", camera, false); }, {"not found"});
+}
+
+// Issue 18 item 10: a frame listed in frames.csv is named by its line there and its image name as
+// listed, in one line (the decoders print nothing), whatever is wrong with the file.
+TEST(FrameReader, ErrorsNameTheFramesCsvLine) {
+  TempDir dir;
+  WriteImage(dir / "full.png", Pattern(kWidth, kHeight, CV_8UC1));
+  std::ifstream png_in(dir / "full.png", std::ios::binary);
+  const std::string png((std::istreambuf_iterator<char>(png_in)), std::istreambuf_iterator<char>());
+  WriteText(dir / "half.png", png.substr(0, png.size() / 2));
+  WriteText(dir / "garbage.png", "this is not a PNG");
+  WriteImage(dir / "small.png", Pattern(kWidth - 2, kHeight, CV_8UC1));
+  Drive drive = ImageDrive(dir, {"full.png", "half.png", "garbage.png", "absent.png", "small.png"});
+  drive.frames_csv = dir / "frames.csv";
+  for (size_t i = 0; i < drive.frames.size(); ++i)
+    drive.frames[i].line = static_cast<int64_t>(i) + 2;
+  const FrameReader reader(drive);
+  EXPECT_EQ(MaxDifference(reader.ReadGrey(0), Pattern(kWidth, kHeight, CV_8UC1)), 0);
+  ::testing::internal::CaptureStderr();
+  ExpectError([&] { reader.ReadGrey(1); },
+              {dir / "frames.csv:3: image half.png: cannot decode (truncated PNG: "});
+  ExpectError([&] { reader.ReadColour(2); },
+              {dir / "frames.csv:4: image garbage.png: cannot decode"});
+  ExpectError([&] { reader.ReadGrey(3); },
+              {dir / "frames.csv:5: image absent.png: image file not found"});
+  ExpectError([&] { reader.ReadGrey(4); },
+              {dir / "frames.csv:6: image small.png: image size 38x30 differs"});
+  // The same through ReadFrameImage (frames polled from a growing drive).
+  ExpectError([&] { ReadFrameImage(drive, drive.frames[1], false); },
+              {dir / "frames.csv:3: image half.png: cannot decode (truncated PNG: "});
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  // Frames not from a CSV (a folder) are named by their file.
+  drive.frames_csv.clear();
+  ExpectError([&] { FrameReader(drive).ReadGrey(1); },
+              {dir / "half.png: cannot decode (truncated PNG: "});
 }
 
 TEST(FrameReader, ContentHashIsTheFileHash) {

@@ -25,6 +25,7 @@ struct FrameRecord {
   frame_t frame = kInvalidFrame;  // the drive's own frame number (KITTI frame number, video index)
   double timestamp_s = 0.0;       // seconds, same clock as the positions (UNIX time for real data)
   std::string image;
+  int64_t line = 0;  // of the frames CSV (0 for frames from a folder or a video); not compared
 
   bool operator==(const FrameRecord& other) const;
 };
@@ -77,6 +78,7 @@ struct Drive {
   Camera camera;        // calibration of the frames as stored (may have distortion)
   bool colour = false;  // frames are colour images (informative; readers load as stored)
   std::string video;    // video file when the frames come from one, else empty
+  std::string frames_csv;  // the frames CSV resolved against `dir` ("" for a folder or video)
   std::vector<FrameRecord> frames;            // sorted by timestamp; frame numbers unique
   PositionTrack gnss;                         // may be empty (no GNSS)
   std::optional<PositionTrack> ground_truth;  // kept apart: never read by the localizer
@@ -85,6 +87,8 @@ struct Drive {
 
   // Path of a frame's image resolved against `dir`.
   std::string ImagePath(const FrameRecord& frame) const;
+  // "<frames_csv>:<line>" of a frame read from the frames CSV, else "".
+  std::string FrameWhere(const FrameRecord& frame) const;
   // `video` resolved against `dir` ("" when the drive has no video).
   std::string VideoPath() const;
   // Path of a LiDAR scan file resolved against `dir`.

@@ -21,9 +21,11 @@ namespace epiloc {
 // kMaxVideoSkip frames ahead, so reading in order decodes each frame once.
 //
 // PNG and JPEG, grey or colour, 8 or 16 bit (16-bit values are scaled to 8 bit by 1/256) are
-// accepted; pixels are read as stored (no EXIF rotation). Errors: "<path>: cannot read image" for
-// a missing or corrupt file, "<path>: image size WxH differs from the calibration's WxH" for a
-// size mismatch.
+// accepted; pixels are read as stored (no EXIF rotation). Errors name the frames CSV line of a
+// frame listed there, "<frames.csv>:<line>: image <name as listed>: <problem>", else the image
+// file, "<path>: <problem>"; problems: "image file not found", "cannot decode (truncated PNG:
+// ...)", "cannot decode (not a PNG or JPEG, or corrupt)", "image size WxH differs from the
+// calibration's WxH", ...
 class FrameReader {
  public:
   static constexpr int64_t kMaxVideoSkip = 30;
@@ -51,6 +53,7 @@ class FrameReader {
   Camera camera_;
   std::vector<FrameRecord> frames_;
   std::string video_path_;
+  std::string frames_csv_;
 
   mutable std::mutex video_mutex_;  // guards the members below
   mutable cv::VideoCapture capture_;
@@ -63,13 +66,18 @@ class FrameReader {
 std::string FrameContentHash(const Drive& drive, size_t index);
 
 // One image file as FrameReader reads it: 8-bit, grey (CV_8UC1) or BGR (`colour`), checked
-// against the calibration's size. Throws Error as FrameReader does; a truncated PNG or JPEG is
-// reported without handing it to the decoder (whose libraries print on stderr).
+// against the calibration's size. Throws Error "<path>: <problem>" with the problems of
+// FrameReader; a truncated PNG or JPEG is reported without handing it to the decoder (whose
+// libraries print on stderr).
 cv::Mat ReadImageFile(const std::string& path, const Camera& camera, bool colour);
 
+// The image of one frame of a drive's image files (e.g. a frame polled from a growing drive), as
+// FrameReader reads it, with its errors naming the frames CSV line.
+cv::Mat ReadFrameImage(const Drive& drive, const FrameRecord& frame, bool colour);
+
 // "" if `data` (the bytes of an image file) is a complete PNG or JPEG or another format; else why
-// not: "truncated PNG (chunk IDAT ends past the end of the file)", "truncated JPEG (no end
-// marker)", ...
+// not: "truncated PNG: chunk IDAT ends past the end of the file", "truncated JPEG: no
+// end-of-image marker", ...
 std::string ImageTruncation(const std::string& data);
 
 // Silences the libraries' own logging on stderr (OpenCV's log, FFmpeg's through OpenCV) so that

@@ -159,6 +159,7 @@ struct QueryFrame {
   std::optional<Geodetic> gnss;  // GNSS fix at timestamp_s, when there is one
   double arrival_s = 0.0;        // when the frame became available (steady clock, for latency)
   double read_seconds = 0.0;     // reading and decoding it (frame sources fill it in)
+  std::string where;  // for messages: "<frames.csv>:<line>" of a drive's frame ("" if none)
 };
 
 // A frame after feature extraction (Localizer::Prepare), ready for Track.
@@ -172,6 +173,7 @@ struct PreparedFrame {
   std::shared_ptr<DescriptorIndex> index;  // query index (pair-by-pair matching only)
   double extraction_seconds = 0.0;
   StageSeconds stages;  // read, undistort, sift, retrieval
+  std::string where;  // QueryFrame::where
 };
 
 // kSkipped: not tracked at all (LocalizeStream skipped the frame: it was late and a newer one

@@ -37,6 +37,8 @@ struct LocalizeRun {
   StageSeconds stages;              // the same split by stage, summed over frames
   // Per tracked frame, from the frame's arrival (FrameSource) to its rows handed to the sink.
   double latency_p50_s = 0.0, latency_p95_s = 0.0, latency_max_s = 0.0;
+  // Frames whose image gave no SIFT features (black, overexposed, textureless), in order.
+  std::vector<frame_t> frames_without_features;
 };
 
 // Called for each tracked frame with its estimate and rows, in frame order, as soon as they are
@@ -46,7 +48,10 @@ using RowSink =
 
 // Runs `localizer` over every frame of `source` until the source ends. At most
 // options().num_threads frames are prepared ahead. `progress` gets (frames done, source size or
-// 0). Rethrows the first error of the source, the extraction or the tracker.
+// 0). Rethrows the first error of the source, the extraction or the tracker. A frame without SIFT
+// features is warned about (naming its frames CSV line) for the first kFeaturelessWarnings such
+// frames; when any, one summary warning at the end counts them all.
+constexpr int kFeaturelessWarnings = 3;
 LocalizeRun LocalizeStream(Localizer& localizer,
                            FrameSource& source,
                            const RowSink& sink,

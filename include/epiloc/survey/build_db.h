@@ -43,7 +43,8 @@ struct BuildDbSummary {
   int64_t frames_added = 0;
   int64_t features_added = 0;
   // Frames added without a single SIFT feature (black, overexposed or textureless images: no
-  // query frame can be placed at them); warned about.
+  // query frame can be placed at them); the first few are warned about one by one (with their
+  // frames CSV line), all of them in one summary warning at the end.
   std::vector<frame_t> frames_without_features;
   double seconds = 0.0;
   double route_length_m = 0.0;
