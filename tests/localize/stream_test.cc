@@ -153,6 +153,18 @@ TEST(Stream, LateFramesAreSkippedWhenANewerOneWaits) {
   }
 }
 
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kAddressSanitizer = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+constexpr bool kAddressSanitizer = true;
+#else
+constexpr bool kAddressSanitizer = false;
+#endif
+#else
+constexpr bool kAddressSanitizer = false;
+#endif
+
 TEST(Stream, MemoryStaysFlatOverALongStream) {
   const std::string dir = Route();
   const Drive drive = LoadDrive(dir + "/query");
@@ -184,8 +196,12 @@ TEST(Stream, MemoryStaysFlatOverALongStream) {
             << "pass " << after_first_mb << " MB, growth over " << kPasses - 1 << " more passes "
             << growth_mb << " MB\n";
   EXPECT_GT(localized, total * 9 / 10);
-  // Per frame, a leak of even 100 kB would add > 20 MB over these passes.
-  EXPECT_LT(growth_mb, 15.0);
+  // Per frame, a leak of even 100 kB would add > 20 MB over these passes. Under AddressSanitizer
+  // freed blocks wait in its quarantine (256 MB) before reuse, so resident memory grows without a
+  // leak (24 MB measured); there LeakSanitizer checks for leaks instead.
+  if (!kAddressSanitizer) {
+    EXPECT_LT(growth_mb, 15.0);
+  }
 }
 
 }  // namespace
