@@ -17,6 +17,20 @@
 
 namespace epiloc {
 
+// Whether this build runs under AddressSanitizer (it reserves terabytes of shadow memory and
+// holds freed blocks in a quarantine: memory limits and resident-memory bounds do not apply).
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kAddressSanitizer = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+constexpr bool kAddressSanitizer = true;
+#else
+constexpr bool kAddressSanitizer = false;
+#endif
+#else
+constexpr bool kAddressSanitizer = false;
+#endif
+
 // A fresh directory named after the running test, removed when the object goes away.
 class TempDir {
  public:

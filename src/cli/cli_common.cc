@@ -33,40 +33,6 @@ bool IsOptionTakingValue(const CLI::App& app, const std::string& arg) {
   return option != nullptr && option->get_type_size() != 0;
 }
 
-size_t EditDistance(const std::string& a, const std::string& b) {
-  std::vector<size_t> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    size_t diagonal = row[0];
-    row[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t above = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diagonal = above;
-    }
-  }
-  return row[b.size()];
-}
-
-// The known name closest to `typed` (at most 2 edits, or one it begins), else "".
-std::string Suggest(const std::string& typed, const std::vector<std::string>& names) {
-  std::string best;
-  size_t best_distance = 3;
-  for (const std::string& name : names) {
-    const size_t distance = EditDistance(typed, name);
-    if (distance < best_distance) {
-      best_distance = distance;
-      best = name;
-    }
-  }
-  if (best.empty()) {
-    for (const std::string& name : names) {
-      if (!typed.empty() && name.rfind(typed, 0) == 0) return name;
-    }
-  }
-  return best;
-}
-
 // The value after '=' ends where a closing quote or bracket says; false if it never closes.
 bool ValueIsClosed(const std::string& value) {
   const char open = value.empty() ? '\0' : value[0];
@@ -87,7 +53,40 @@ bool ValueIsClosed(const std::string& value) {
   return value.find_first_of("\"'") == std::string::npos;
 }
 
+size_t EditDistance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
 }  // namespace
+
+std::string Suggest(const std::string& typed, const std::vector<std::string>& names) {
+  std::string best;
+  size_t best_distance = 3;
+  for (const std::string& name : names) {
+    const size_t distance = EditDistance(typed, name);
+    if (distance < best_distance) {
+      best_distance = distance;
+      best = name;
+    }
+  }
+  if (best.empty()) {
+    for (const std::string& name : names) {
+      if (!typed.empty() && name.rfind(typed, 0) == 0) return name;
+    }
+  }
+  return best;
+}
 
 void CheckConfigFile(const std::string& path, const std::vector<std::string>& names) {
   std::ifstream in(path, std::ios::binary);

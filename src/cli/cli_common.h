@@ -26,6 +26,9 @@ void AddCommonFlags(CLI::App& app, CommonFlags& flags);
 // required options; a --config file is checked by CheckConfigFile first.
 std::optional<int> Parse(CLI::App& app, CommonFlags& flags, int argc, char** argv);
 
+// The known name closest to `typed` (at most 2 edits), else the first one it begins, else "".
+std::string Suggest(const std::string& typed, const std::vector<std::string>& names);
+
 // Checks a --config file line by line (TOML / INI: `key = value`, '#' or ';' comments, an
 // optional [default] section): throws Error "FILE:LINE: ..." for a line that is not `key = value`,
 // a key that is not one of `names` (long option names), an unterminated quoted string or list,

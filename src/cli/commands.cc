@@ -1,27 +1,11 @@
 #include "epiloc/cli/commands.h"
 
-#include <algorithm>
-#include <numeric>
+#include <string>
+#include <vector>
+
+#include "cli_common.h"
 
 namespace epiloc {
-namespace {
-
-size_t EditDistance(const std::string& a, const std::string& b) {
-  std::vector<size_t> row(b.size() + 1);
-  std::iota(row.begin(), row.end(), 0);
-  for (size_t i = 1; i <= a.size(); ++i) {
-    size_t diagonal = row[0];
-    row[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t above = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diagonal = above;
-    }
-  }
-  return row[b.size()];
-}
-
-}  // namespace
 
 const std::vector<Command>& Commands() {
   static const std::vector<Command> commands = {
@@ -47,17 +31,9 @@ const std::vector<Command>& Commands() {
 }
 
 std::string SuggestCommand(const std::string& typed) {
-  std::string best;
-  size_t best_distance = 3;  // more edits than this is no suggestion
-  for (const Command& command : Commands()) {
-    const size_t distance = EditDistance(typed, command.name);
-    if (distance < best_distance ||
-        (command.name.rfind(typed, 0) == 0 && !typed.empty() && best.empty())) {
-      best_distance = std::min(distance, best_distance);
-      best = command.name;
-    }
-  }
-  return best;
+  std::vector<std::string> names;
+  for (const Command& command : Commands()) names.push_back(command.name);
+  return Suggest(typed, names);
 }
 
 }  // namespace epiloc

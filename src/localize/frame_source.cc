@@ -14,16 +14,16 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double NowSeconds() {
-  return std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
-}
-
 bool IsDeviceNumber(const std::string& text) {
   return !text.empty() && text.size() < 4 &&
          std::all_of(text.begin(), text.end(), [](char c) { return std::isdigit(c) != 0; });
 }
 
 }  // namespace
+
+double SteadyNowSeconds() {
+  return std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
+}
 
 DriveFrameSource::DriveFrameSource(const std::string& drive_dir, bool use_gnss)
     : drive_(LoadDrive(drive_dir)) {
@@ -42,11 +42,11 @@ std::optional<QueryFrame> DriveFrameSource::Next() {
   QueryFrame frame;
   frame.frame = drive_.frames[i].frame;
   frame.timestamp_s = drive_.frames[i].timestamp_s;
-  frame.arrival_s = NowSeconds();
+  frame.arrival_s = SteadyNowSeconds();
   frame.where = drive_.FrameWhere(drive_.frames[i]);
   // The localizer works on grey images: reading them grey spares a colour conversion later.
   frame.image = reader_->ReadGrey(i);
-  frame.read_seconds = NowSeconds() - frame.arrival_s;
+  frame.read_seconds = SteadyNowSeconds() - frame.arrival_s;
   if (!gnss_.per_frame.empty() && gnss_.per_frame[i]) frame.gnss = gnss_.per_frame[i]->position;
   return frame;
 }
@@ -70,7 +70,7 @@ std::optional<QueryFrame> FollowDriveSource::Next() {
   while (next_pending_ >= pending_.size()) {
     pending_ = follower_.PollFrames();
     next_pending_ = 0;
-    polled_at_s_ = NowSeconds();
+    polled_at_s_ = SteadyNowSeconds();
     if (!pending_.empty()) break;
     if (std::chrono::duration<double>(Clock::now() - idle_since).count() > idle_timeout_s_) {
       return std::nullopt;
@@ -85,9 +85,9 @@ std::optional<QueryFrame> FollowDriveSource::Next() {
   // Rows read in one poll arrived together, however long the earlier ones of them take.
   frame.arrival_s = polled_at_s_;
   frame.where = manifest.FrameWhere(record);
-  const double read_start = NowSeconds();
+  const double read_start = SteadyNowSeconds();
   frame.image = ReadFrameImage(manifest, record, false);
-  frame.read_seconds = NowSeconds() - read_start;
+  frame.read_seconds = SteadyNowSeconds() - read_start;
   if (use_gnss_) {
     if (const std::optional<PositionSample> fix = follower_.GnssAt(record.timestamp_s)) {
       frame.gnss = fix->position;
@@ -126,9 +126,9 @@ VideoFrameSource::~VideoFrameSource() = default;
 std::optional<QueryFrame> VideoFrameSource::Next() {
   if (options_.max_frames >= 0 && next_frame_ >= options_.max_frames) return std::nullopt;
   QueryFrame frame;
-  const double read_start = NowSeconds();
+  const double read_start = SteadyNowSeconds();
   if (!capture_->capture.read(frame.image) || frame.image.empty()) return std::nullopt;
-  frame.arrival_s = NowSeconds();
+  frame.arrival_s = SteadyNowSeconds();
   frame.read_seconds = frame.arrival_s - read_start;
   frame.frame = next_frame_++;
   if (device_) {

@@ -19,10 +19,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double NowSeconds() {
-  return std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
-}
-
 // Linear interpolation between order statistics (as the evaluator's percentiles).
 double Percentile(std::vector<double> values, double p) {
   if (values.empty()) return 0.0;
@@ -136,7 +132,7 @@ LocalizeRun LocalizeStream(Localizer& localizer,
         }
       }
       const double max_latency_s = localizer.options().max_latency_s;
-      if (max_latency_s > 0 && NowSeconds() - prepared.arrival_s >= max_latency_s &&
+      if (max_latency_s > 0 && SteadyNowSeconds() - prepared.arrival_s >= max_latency_s &&
           queue.HasWaiting()) {
         FrameEstimate skipped;
         skipped.frame = prepared.frame;
@@ -146,7 +142,7 @@ LocalizeRun LocalizeStream(Localizer& localizer,
         skipped.extraction_seconds = prepared.extraction_seconds;
         skipped.stages = prepared.stages;
         skipped.note = fmt::format("skipped: {:.0f} ms late, a newer frame waiting",
-                                   1e3 * (NowSeconds() - prepared.arrival_s));
+                                   1e3 * (SteadyNowSeconds() - prepared.arrival_s));
         sink(&skipped, localizer.Rows(skipped));
         ++run.num_frames;
         ++run.num_skipped;
@@ -157,7 +153,7 @@ LocalizeRun LocalizeStream(Localizer& localizer,
       }
       const FrameEstimate estimate = localizer.Track(prepared);
       sink(&estimate, localizer.Rows(estimate));
-      latencies.push_back(NowSeconds() - prepared.arrival_s);
+      latencies.push_back(SteadyNowSeconds() - prepared.arrival_s);
       ++run.num_frames;
       run.extraction_seconds += estimate.extraction_seconds;
       run.tracking_seconds += estimate.tracking_seconds;

@@ -566,17 +566,7 @@ TEST(CloudIo, Las) {
 // with Error (exit 0). Without the limit (sanitizer builds reserve terabytes of shadow memory) it
 // runs `read` in this process.
 int ExitCodeUnderMemoryLimit(const std::function<void()>& read) {
-#if defined(__SANITIZE_ADDRESS__)
-  constexpr bool kLimit = false;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-  constexpr bool kLimit = false;
-#else
-  constexpr bool kLimit = true;
-#endif
-#else
-  constexpr bool kLimit = true;
-#endif
+  constexpr bool kLimit = !kAddressSanitizer;
   const auto classify = [&] {
     try {
       read();

@@ -94,31 +94,17 @@ TEST(Stream, OfflineRowsNeedTheRecording) {
 // (rows with status skipped), the newest is always tracked; with max_latency_s 0 none is.
 class LateSource : public FrameSource {
  public:
-  explicit LateSource(const std::string& drive_dir)
-      : drive_(LoadDrive(drive_dir)), reader_(drive_), gnss_(PositionFrames(drive_, drive_.gnss)) {}
-  const Camera& camera() const override { return drive_.camera; }
+  explicit LateSource(const std::string& drive_dir) : drive_(drive_dir, true) {}
+  const Camera& camera() const override { return drive_.camera(); }
   std::string name() const override { return "late"; }
   std::optional<QueryFrame> Next() override {
-    if (next_ >= drive_.frames.size()) return std::nullopt;
-    const size_t i = next_++;
-    QueryFrame frame;
-    frame.frame = drive_.frames[i].frame;
-    frame.timestamp_s = drive_.frames[i].timestamp_s;
-    frame.image = reader_.ReadGrey(i);
-    if (gnss_.per_frame[i]) frame.gnss = gnss_.per_frame[i]->position;
-    // Every frame arrived a second ago: all of them are late.
-    frame.arrival_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-            .count() -
-        1.0;
+    std::optional<QueryFrame> frame = drive_.Next();
+    if (frame) frame->arrival_s -= 1.0;  // every frame arrived a second ago: all are late
     return frame;
   }
 
  private:
-  Drive drive_;
-  FrameReader reader_;
-  FramePositions gnss_;
-  size_t next_ = 0;
+  DriveFrameSource drive_;
 };
 
 TEST(Stream, LateFramesAreSkippedWhenANewerOneWaits) {
@@ -152,18 +138,6 @@ TEST(Stream, LateFramesAreSkippedWhenANewerOneWaits) {
     }
   }
 }
-
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kAddressSanitizer = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-constexpr bool kAddressSanitizer = true;
-#else
-constexpr bool kAddressSanitizer = false;
-#endif
-#else
-constexpr bool kAddressSanitizer = false;
-#endif
 
 TEST(Stream, MemoryStaysFlatOverALongStream) {
   const std::string dir = Route();

@@ -15,6 +15,9 @@
 
 namespace epiloc {
 
+// Seconds on the steady clock: the clock of QueryFrame::arrival_s (latency is measured on it).
+double SteadyNowSeconds();
+
 class FrameSource {
  public:
   virtual ~FrameSource() = default;
