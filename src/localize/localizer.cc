@@ -57,6 +57,17 @@ int NearestPair(const std::vector<PairResult>& pairs) {
   return best < 0 ? -1 : pairs[best].db_index;
 }
 
+// The database index of the valid pair with the most inliers, or -1.
+int BestSupportedPair(const std::vector<PairResult>& pairs) {
+  int best = -1;
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    if (pairs[k].valid && (best < 0 || pairs[k].num_inliers > pairs[best].num_inliers)) {
+      best = static_cast<int>(k);
+    }
+  }
+  return best < 0 ? -1 : pairs[best].db_index;
+}
+
 // Which side of the evaluated window the query lies on, from the signs of q_z: +1 if every valid
 // database camera is ahead (the query is behind the window), -1 if every one is behind, 0 if the
 // window brackets the query (or there is too little evidence to say).
@@ -414,6 +425,7 @@ void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
     est->conflict = true;
   }
   if (!filter.initialised()) {
+    refused.reset();
     if (measurements.empty()) return;
     // (Re)initialisation: from the best-supported measurement, and the other if it agrees.
     filter.Initialise(t, measurements[0].s_m, measurements[0].sigma_m);
@@ -430,18 +442,52 @@ void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
     }
     return;
   }
-  bool refused = false;
+  bool refused = false, accepted = false;
+  const double track_sigma_m = filter.sigma_s_m();
   for (const Measurement& m : measurements) {
     if (filter.Accepts(m.s_m, m.sigma_m)) {
       filter.Update(m.s_m, m.sigma_m);
       *m.accepted = true;
       confirmed = true;
+      accepted = true;
     } else {
       refused = true;
       AddNote(&est->note, fmt::format("{} {:+.2f} m from the track (sigma {:.2f} m): refused",
                                       m.name, m.s_m - filter.s_m(), m.sigma_m));
     }
   }
+  // The track against the evidence: when it refuses the better-supported measurements of two
+  // frames in a row (each with a smaller sigma than the track's own) and these agree with each
+  // other under the motion model, the track was the wrong one (a pose it took from a weak frame,
+  // e.g. in a turn); they replace it. One frame alone never does: it may be the wrong one.
+  const Refused* previous = this->refused ? &*this->refused : nullptr;
+  std::optional<Refused> now;
+  if (!accepted && !measurements.empty() && measurements[0].sigma_m < track_sigma_m) {
+    now = Refused{t, measurements[0].s_m, measurements[0].sigma_m};
+  }
+  if (now && previous && confirmed) {
+    // The candidate keeps the track's speed (and its uncertainty): a wrong position with the
+    // right speed is what a weak frame leaves behind, and two frames a few centimetres apart
+    // say little about the speed themselves.
+    AlongTrackFilter candidate = filter;
+    candidate.Initialise(previous->t, previous->s_m, previous->sigma_m, filter.v_mps(),
+                         filter.sigma_v_mps());
+    candidate.Predict(t);
+    if (candidate.Accepts(now->s_m, now->sigma_m)) {
+      AddNote(&est->note,
+              fmt::format("track replaced: it refused two frames that agree with each other "
+                          "({:+.2f} m from it)",
+                          now->s_m - filter.s_m()));
+      candidate.Update(now->s_m, now->sigma_m);
+      filter = candidate;
+      *measurements[0].accepted = true;
+      est->reinitialised = true;
+      ++num_reinitialisations;
+      this->refused.reset();
+      return;
+    }
+  }
+  this->refused = now;
   if (!confirmed && refused) {
     // The first measurement of this track disagrees with the next one: it was the wrong one
     // as likely as this one. Start again from the next frame.
@@ -562,8 +608,14 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   // Evidence: the epipolar measurement over the pairs that count, and the 6-DoF pose.
   est.epipolar = MeasureAlongTrack(pairs, impl.db_s, impl.undistorter.undistorted_camera().fx,
                                    options.evidence);
-  if (impl.refine && (est.epipolar.valid || filter.initialised())) {
-    const double reference = filter.initialised() ? filter.s_m() : est.epipolar.l_m;
+  // The 6-DoF pose needs no epipolar estimate: 2D-3D correspondences hold at any relative
+  // orientation (a turn into the street, where the V model of d fails), so while no track
+  // exists it is also tried around the best-supported pair.
+  const int best_supported = BestSupportedPair(pairs);
+  if (impl.refine && (est.epipolar.valid || filter.initialised() || best_supported >= 0)) {
+    const double reference = filter.initialised() ? filter.s_m()
+                             : est.epipolar.valid ? est.epipolar.l_m
+                                                  : impl.db_s[best_supported];
     const auto refine_start = Clock::now();
     est.refined = impl.Refine(query, reference, pairs);
     est.stages.refine = Seconds(refine_start);

@@ -77,6 +77,13 @@ struct Localizer::Impl {
   // are not reported ok: one measurement alone (a degenerate epipole, a car still in the turn
   // into the street) must not place the vehicle.
   bool confirmed = false;
+  // The best measurement of the last frame, when the track refused all of that frame's
+  // measurements and each was better supported than the track (smaller sigma). A second such
+  // frame whose measurement agrees with it replaces the track (see Fuse).
+  struct Refused {
+    double t, s_m, sigma_m;
+  };
+  std::optional<Refused> refused;
 
   int64_t num_pairs = 0;
   int num_reinitialisations = 0;
