@@ -83,6 +83,16 @@ int OutsideWindow(const std::vector<PairResult>& pairs) {
   return 0;
 }
 
+// Whether the valid pairs place the vehicle between database cameras: at least one ahead of it
+// and one behind it, three or more in all.
+bool Brackets(const std::vector<PairResult>& pairs) {
+  int ahead = 0, behind = 0;
+  for (const PairResult& p : pairs) {
+    if (p.valid) (p.signed_distance > 0 ? ahead : behind) += 1;
+  }
+  return ahead > 0 && behind > 0 && ahead + behind >= 3;
+}
+
 }  // namespace
 
 // DTW costs of a row: d relative to twice the row's median valid d, capped at 1 (the cost of a
@@ -572,12 +582,22 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   // The window: around the prediction while tracking (as wide as its uncertainty), else from
   // retrieval and the GNSS prior.
   std::vector<PairResult> pairs;
+  // A prediction much less certain than the tracking window is an unknown speed (the frames after
+  // a (re)initialisation, a gap in the input) more than an unknown place: the window around the
+  // prediction is searched first, extended toward the side where its pairs place the vehicle,
+  // and the rest of the wide window only when that gives no evidence on both sides. The
+  // vehicle's first frames then cost what a tracked frame costs, not three times as much.
+  std::optional<std::pair<double, double>> rest_of_window;
   if (!off_route) {
     if (filter.initialised()) {
       const double half_width = std::min(std::max(options.track_window_m, 3.0 * filter.sigma_s_m()),
                                          options.gps_window_m);
-      pairs =
-          impl.Evaluate(query, impl.Window(filter.s_m() - half_width, filter.s_m() + half_width));
+      double searched = half_width;
+      if (half_width > 2.0 * options.track_window_m) {
+        searched = options.track_window_m;
+        rest_of_window.emplace(filter.s_m() - half_width, filter.s_m() + half_width);
+      }
+      pairs = impl.Evaluate(query, impl.Window(filter.s_m() - searched, filter.s_m() + searched));
     } else {
       pairs = impl.Initialise(query, est.gnss_on_route, &est.reinitialised);
     }
@@ -599,6 +619,18 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
     std::vector<PairResult> extra = impl.Evaluate(query, more);
     pairs.insert(pairs.end(), extra.begin(), extra.end());
     ++est.window_extensions;
+  }
+
+  if (rest_of_window && !Brackets(pairs)) {
+    std::vector<int> rest;
+    for (const int j : impl.Window(rest_of_window->first, rest_of_window->second)) {
+      if (std::none_of(pairs.begin(), pairs.end(),
+                       [j](const PairResult& p) { return p.db_index == j; })) {
+        rest.push_back(j);
+      }
+    }
+    std::vector<PairResult> extra = impl.Evaluate(query, rest);
+    pairs.insert(pairs.end(), extra.begin(), extra.end());
   }
 
   est.nearest_db_index = NearestPair(pairs);

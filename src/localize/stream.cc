@@ -151,7 +151,8 @@ LocalizeRun LocalizeStream(Localizer& localizer,
         if (progress) progress(run.num_frames, std::max<int64_t>(total, run.num_frames));
         continue;
       }
-      const FrameEstimate estimate = localizer.Track(prepared);
+      FrameEstimate estimate = localizer.Track(prepared);
+      estimate.latency_seconds = SteadyNowSeconds() - prepared.arrival_s;
       sink(&estimate, localizer.Rows(estimate));
       latencies.push_back(SteadyNowSeconds() - prepared.arrival_s);
       ++run.num_frames;
@@ -235,6 +236,7 @@ DiagnosticsCsv::DiagnosticsCsv(const std::string& path, const Localizer& localiz
             "matches",
             "inliers",
             "parallax_deg",
+            "heading_deg",
             "failure",
             "verdict",
             "epipolar_l_m",
@@ -246,7 +248,9 @@ DiagnosticsCsv::DiagnosticsCsv(const std::string& path, const Localizer& localiz
             "status",
             "note",
             "reinitialised",
-            "frame_seconds"}) {
+            "frame_seconds",
+            "extraction_seconds",
+            "latency_seconds"}) {
   for (int j = 0; j < localizer.num_db_frames(); ++j) {
     db_frame_numbers_.push_back(localizer.db_frame_number(j));
     db_s_m_.push_back(localizer.db_s_m(j));
@@ -271,6 +275,7 @@ void DiagnosticsCsv::Write(const FrameEstimate& est) {
                    std::to_string(p.num_matches),
                    std::to_string(p.num_inliers),
                    p.valid ? FormatFixed(p.parallax_deg, 3) : "",
+                   p.valid ? FormatFixed(p.heading_deg, 3) : "",
                    p.failure,
                    verdict,
                    est.epipolar.valid ? FormatFixed(est.epipolar.l_m, 3) : "",
@@ -282,7 +287,9 @@ void DiagnosticsCsv::Write(const FrameEstimate& est) {
                    TrackStatusName(est.status),
                    est.note,
                    est.reinitialised ? "1" : "0",
-                   FormatFixed(est.tracking_seconds, 4)});
+                   FormatFixed(est.tracking_seconds, 4),
+                   FormatFixed(est.extraction_seconds, 4),
+                   FormatFixed(est.latency_seconds, 4)});
   }
 }
 

@@ -217,6 +217,9 @@ struct FrameEstimate {
   double extraction_seconds = 0.0;
   double tracking_seconds = 0.0;
   StageSeconds stages;  // every stage, Prepare's and Track's
+  // From the frame's arrival (QueryFrame::arrival_s) to the estimate, when a stream (LocalizeStream)
+  // tracked it: extraction, tracking and every wait between (0 when tracked directly).
+  double latency_seconds = 0.0;
 };
 
 class Localizer {
