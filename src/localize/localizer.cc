@@ -466,14 +466,18 @@ void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
                                       m.name, m.s_m - filter.s_m(), m.sigma_m));
     }
   }
-  // The track against the evidence: when it refuses the better-supported measurements of two
-  // frames in a row (each with a smaller sigma than the track's own) and these agree with each
-  // other under the motion model, the track was the wrong one (a pose it took from a weak frame,
-  // e.g. in a turn); they replace it. One frame alone never does: it may be the wrong one.
+  // The track against the evidence: when it refuses the 6-DoF poses of two frames in a row, each
+  // better supported than the track (a smaller sigma), and these agree with each other under the
+  // motion model, the track was the wrong one (a pose it took from a weak frame, e.g. in a
+  // turn); they replace it. One frame alone never does: it may be the wrong one. Epipolar
+  // measurements never do: a car driving ahead gives the same wrong line frame after frame, a
+  // pose is checked against the map's structure.
   const Refused* previous = this->refused ? &*this->refused : nullptr;
   std::optional<Refused> now;
-  if (!accepted && !measurements.empty() && measurements[0].sigma_m < track_sigma_m) {
-    now = Refused{t, measurements[0].s_m, measurements[0].sigma_m};
+  for (const Measurement& m : measurements) {
+    if (!accepted && m.accepted == &est->pnp_accepted && m.sigma_m < track_sigma_m) {
+      now = Refused{t, m.s_m, m.sigma_m};
+    }
   }
   if (now && previous && confirmed) {
     // The candidate keeps the track's speed (and its uncertainty): a wrong position with the
@@ -490,7 +494,7 @@ void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
                           now->s_m - filter.s_m()));
       candidate.Update(now->s_m, now->sigma_m);
       filter = candidate;
-      *measurements[0].accepted = true;
+      est->pnp_accepted = true;
       est->reinitialised = true;
       ++num_reinitialisations;
       this->refused.reset();
