@@ -187,12 +187,24 @@ AlongTrackMeasurement MeasureAlongTrack(const std::vector<PairResult>& pairs,
   const double var = std::max(1.0, scale2) / (line.a * line.a) *
                      (1.0 / sum_w + (line.l - mean_s) * (line.l - mean_s) / sxx);
   out.sigma_m = std::sqrt(var + options.floor_sigma_m * options.floor_sigma_m);
+  // Each pair's sign says on which side of the vehicle its camera is. A line whose intercept puts
+  // a camera on the other side (farther than 2 sigma of l: beside the vehicle the sign is
+  // uncertain) contradicts the pairs it was fitted to: nearly equal u on one side (the vehicle
+  // far beyond the last camera, past the route's end) leave a flat, unconstrained line.
+  int contradicted = 0;
+  for (const Point& p : used) {
+    const double beyond = p.s - line.l;  // > 0: the camera should be ahead (u > 0)
+    if (std::abs(beyond) > 2.0 * out.sigma_m && (beyond > 0) != (p.u > 0)) ++contradicted;
+  }
   if (out.num_used < options.min_pairs) {
     out.failure = "too few consistent pairs";
   } else if (out.lateral_offset_m > options.max_lateral_offset_m) {
     out.failure = "the pairs' directions show no road geometry";
   } else if (!std::isfinite(out.sigma_m)) {
     out.failure = "no uncertainty";
+  } else if (contradicted > 0) {
+    out.failure = fmt::format("the line puts {} of its pairs' cameras on the wrong side",
+                              contradicted);
   } else {
     out.valid = true;
   }

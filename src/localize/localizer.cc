@@ -644,6 +644,10 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   // Evidence: the epipolar measurement over the pairs that count, and the 6-DoF pose.
   est.epipolar = MeasureAlongTrack(pairs, impl.db_s, impl.undistorter.undistorted_camera().fx,
                                    options.evidence);
+  if (filter.initialised() && !pairs.empty() && !est.epipolar.valid &&
+      !est.epipolar.failure.empty()) {
+    AddNote(&est.note, "no epipolar measurement: " + est.epipolar.failure);
+  }
   // The 6-DoF pose needs no epipolar estimate: 2D-3D correspondences hold at any relative
   // orientation (a turn into the street, where the V model of d fails), so while no track
   // exists it is also tried around the best-supported pair.

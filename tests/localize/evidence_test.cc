@@ -61,6 +61,40 @@ TEST(Evidence, ExactPairsGiveTheExactPosition) {
   EXPECT_LT(m.sigma_m, 0.05);
 }
 
+// Past the route's end (a run of the suite's synth_beyond_ends, frame 345, 14 m beyond the last
+// database camera): every camera behind the vehicle at nearly the same angle, so the line through
+// them is flat and its intercept anywhere. A fit that puts l among the cameras contradicts their
+// signs (the last one says the vehicle is ahead of it): that is no measurement, and never one
+// inside the route.
+TEST(Evidence, ALineThatPutsCamerasOnTheWrongSideIsNoMeasurement) {
+  const std::vector<double> db_s = {76.0, 76.8, 77.6, 78.4, 79.191, 79.98};
+  // The pairs' signed cotangents (a lateral offset of about 0.12 m: u = (s - l) / offset).
+  const std::vector<double> u = {-108.84, -125.19, -461.31, -81.29, -7.90, -112.54};
+  const std::vector<double> d = {0.01735, 0.02170, 0.02009, 0.02309, 0.00731, 0.02012};
+  const std::vector<int> inliers = {81, 92, 94, 97, 44, 112};
+  const std::vector<double> parallax = {2.81, 2.49, 2.48, 2.20, 2.87, 2.09};
+  std::vector<PairResult> pairs;
+  for (size_t j = 0; j < db_s.size(); ++j) {
+    PairResult p;
+    p.db_index = static_cast<int>(j);
+    p.valid = true;
+    p.num_inliers = inliers[j];
+    p.num_matches = inliers[j] + 30;
+    p.parallax_deg = parallax[j];
+    p.signed_distance = -d[j];
+    p.distance = d[j];
+    p.signed_cot = u[j];
+    pairs.push_back(p);
+  }
+  const AlongTrackMeasurement m = MeasureAlongTrack(pairs, db_s, kFocal, EvidenceOptions());
+  if (m.valid) {
+    // The vehicle is ahead of every camera: l beyond the last one.
+    EXPECT_GT(m.l_m, db_s.back() - 2.0 * m.sigma_m) << "sigma " << m.sigma_m;
+  } else {
+    EXPECT_FALSE(m.failure.empty());
+  }
+}
+
 // The failure seen on an unseen drive: a pair 2-3 spacings ahead with a near-zero d (its
 // matches on a car driving ahead) must neither move the position nor count.
 TEST(Evidence, ADegenerateEpipoleIsRefusedNotTheNearestFrame) {
