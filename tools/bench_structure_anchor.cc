@@ -62,7 +62,7 @@ Similarity3 FitTrue(const std::vector<Frame>& frames) {
 
 void Report(const char* label, const Similarity3& s, const std::vector<Frame>& frames) {
   std::vector<double> h, rot;
-  double al = 0, ac = 0, up = 0;
+  double al = 0, ac = 0, up = 0, yaw = 0, tilt = 0;
   for (const Frame& f : frames) {
     const Eigen::Vector3d d = s * f.vo.translation - f.truth.translation;
     Eigen::Vector3d fw = f.truth.rotation * Eigen::Vector3d::UnitZ();
@@ -73,8 +73,13 @@ void Report(const char* label, const Similarity3& s, const std::vector<Frame>& f
     up += d.z() / frames.size();
     h.push_back((s * f.vo.translation - f.truth.translation).head<2>().norm());
     rot.push_back(RotationDifferenceDeg(s.rotation * f.vo.rotation, f.truth.rotation));
+    // The error rotation in the map: its vertical part is a turn (yaw), the rest a tilt.
+    const Eigen::AngleAxisd e(s.rotation * f.vo.rotation * f.truth.rotation.conjugate());
+    yaw += e.angle() * e.axis().z() * 180.0 / M_PI / frames.size();
+    tilt += e.angle() * e.axis().head<2>().norm() * 180.0 / M_PI / frames.size();
   }
-  std::printf("%-40s mean along %+.3f across %+.3f up %+.3f; ", label, al, ac, up);
+  std::printf("%-40s mean along %+.3f across %+.3f up %+.3f, yaw %+.2f tilt %.2f deg; ", label, al,
+              ac, up, yaw, tilt);
   std::printf("%-4s scale %.4f  horiz median %.3f max %.3f m, rot median %.3f max %.3f deg\n", "",
               s.scale, Pct(h, 0.5), Pct(h, 1.0), Pct(rot, 0.5), Pct(rot, 1.0));
 }

@@ -13,6 +13,8 @@
 namespace epiloc {
 namespace {
 
+constexpr double kDegToRad = M_PI / 180.0;
+
 struct Errors {
   int ok = 0;
   int total = 0;
@@ -54,10 +56,15 @@ Errors Compare(const AnchorDriveResult& result, const Drive& drive, const EnuFra
     e.along_sigma_m.push_back(a.along_sigma_m);
     e.max_across_m = std::max(e.max_across_m, std::abs(d.dot(left)));
     e.max_rotation_posed_deg = std::max(e.max_rotation_posed_deg, rotation_deg);
+    // The error rotation in the map: its vertical part a turn, the rest a tilt.
+    const Eigen::AngleAxisd turn(a.map_from_cam.rotation * truth->rotation.conjugate());
     std::printf(
-        "frame %3lld %s: along %+.3f m (sigma %.3f m), across %+.3f m, up %+.3f m, %.3f deg\n",
+        "frame %3lld %s: along %+.3f m (sigma %.3f m), across %+.3f m, up %+.3f m, %.3f deg (yaw "
+        "%+.3f, tilt %.3f)\n",
         static_cast<long long>(a.frame), AnchorStatusName(a.status).c_str(), d.dot(forward),
-        a.along_sigma_m, d.dot(left), d.z(), rotation_deg);
+        a.along_sigma_m, d.dot(left), d.z(), rotation_deg,
+        turn.angle() * turn.axis().z() / kDegToRad,
+        turn.angle() * turn.axis().head<2>().norm() / kDegToRad);
     if (a.status != AnchorStatus::kOk) continue;
     ++e.ok;
     e.max_horizontal_m = std::max(e.max_horizontal_m, d.head<2>().norm());
