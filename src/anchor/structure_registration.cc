@@ -416,6 +416,36 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
   const Eigen::Matrix<double, 7, 7> covariance =
       h.fullPivLu().inverse() * std::max(result.rms_m * result.rms_m, 1e-12);
   result.along_sigma_m = std::sqrt(std::max(0.0, u.dot(covariance.block<3, 3>(3, 3) * u)));
+  // The Hessian sees only the final pairs: moved along the road, a structure of facades finds
+  // other pairs as good (the cost is flat there, or has minima a window apart). So the points on
+  // the map's surface (within the finest level's loss scale) are counted over moves along u,
+  // re-paired at each: a count within twice its Poisson deviation of the fit's is not told apart
+  // from it, and the largest such move is taken as 2 sigma. A move by the finest distance takes
+  // a point off its pair's inlier band: finer steps add nothing.
+  const double surface_m = options.loss_scale_ratio * finest;
+  const auto on_surface = [&](double move_m) {
+    Similarity3 moved = sim;
+    moved.translation += move_m * u;
+    int count = 0;
+    for (const Pair& p : FindPairs(points, moved, map, finest)) {
+      count += PairResidual(p) <= surface_m ? 1 : 0;
+    }
+    return count;
+  };
+  const double reach_m = options.search_step_m > 0.0 && options.search_along_m > 0.0
+                             ? options.search_along_m
+                             : options.max_distances_m.front();
+  result.along_points_on_surface = on_surface(0.0);
+  const double tie =
+      2.0 * std::sqrt(static_cast<double>(std::max(result.along_points_on_surface, 1)));
+  for (int k = 1; k * finest <= reach_m + 1e-9; ++k) {
+    for (const int sign : {-1, 1}) {
+      if (on_surface(sign * k * finest) + tie >= result.along_points_on_surface) {
+        result.along_ambiguity_m = k * finest;
+      }
+    }
+  }
+  result.along_sigma_m = std::max(result.along_sigma_m, 0.5 * result.along_ambiguity_m);
   if (result.inlier_share < options.min_inlier_share) {
     result.message = fmt::format("inlier share {:.2f} below {:.2f}", result.inlier_share,
                                  options.min_inlier_share);

@@ -237,6 +237,10 @@ int RunAnchor(int argc, char** argv) {
   app.add_option("--max-residual", structure.max_rms_m,
                  "structure: reliability, RMS distance to the map's surfaces at most, metres")
       ->capture_default_str();
+  app.add_option("--max-along-sigma", structure.max_along_sigma_m,
+                 "structure: reliability, position sigma along the road at most, metres (the "
+                 "Hessian's, or half the stretch the along-track profile does not tell apart)")
+      ->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
   if (method == "auto") {
     method = !inputs.photos_dir.empty() ? "photos"

@@ -13,6 +13,8 @@
 namespace epiloc {
 namespace {
 
+constexpr double kDegToRad = M_PI / 180.0;
+
 struct Errors {
   int ok = 0;
   int total = 0;
@@ -21,6 +23,13 @@ struct Errors {
   double max_3d_m = 0.0;
   double max_rotation_deg = 0.0;
   double seconds = 0.0;
+  // Of every frame with a pose, ok or rejected: the error along the road (the camera's levelled
+  // viewing direction) beside the along-track sigma the anchor reports, across it, rotation.
+  int posed = 0;
+  std::vector<double> along_m;
+  std::vector<double> along_sigma_m;
+  double max_across_m = 0.0;
+  double max_rotation_posed_deg = 0.0;
 };
 
 Errors Compare(const AnchorDriveResult& result, const Drive& drive, const EnuFrame& enu) {
@@ -31,13 +40,33 @@ Errors Compare(const AnchorDriveResult& result, const Drive& drive, const EnuFra
     if (a.status != AnchorStatus::kOk) {
       std::printf("frame %lld: %s %s\n", static_cast<long long>(a.frame),
                   AnchorStatusName(a.status).c_str(), a.message.c_str());
-      continue;
     }
-    ++e.ok;
+    if (!a.has_pose) continue;
     const auto truth = TrueMapFromCam(drive, a.timestamp_s, enu);
     EXPECT_TRUE(truth.has_value());
     if (!truth) continue;
     const Eigen::Vector3d d = a.map_from_cam.translation - truth->translation;
+    Eigen::Vector3d forward = truth->rotation * Eigen::Vector3d::UnitZ();
+    forward.z() = 0.0;
+    forward.normalize();
+    const Eigen::Vector3d left = Eigen::Vector3d::UnitZ().cross(forward);
+    const double rotation_deg = RotationDifferenceDeg(a.map_from_cam.rotation, truth->rotation);
+    ++e.posed;
+    e.along_m.push_back(d.dot(forward));
+    e.along_sigma_m.push_back(a.along_sigma_m);
+    e.max_across_m = std::max(e.max_across_m, std::abs(d.dot(left)));
+    e.max_rotation_posed_deg = std::max(e.max_rotation_posed_deg, rotation_deg);
+    // The error rotation in the map: its vertical part a turn, the rest a tilt.
+    const Eigen::AngleAxisd turn(a.map_from_cam.rotation * truth->rotation.conjugate());
+    std::printf(
+        "frame %3lld %s: along %+.3f m (sigma %.3f m), across %+.3f m, up %+.3f m, %.3f deg (yaw "
+        "%+.3f, tilt %.3f)\n",
+        static_cast<long long>(a.frame), AnchorStatusName(a.status).c_str(), d.dot(forward),
+        a.along_sigma_m, d.dot(left), d.z(), rotation_deg,
+        turn.angle() * turn.axis().z() / kDegToRad,
+        turn.angle() * turn.axis().head<2>().norm() / kDegToRad);
+    if (a.status != AnchorStatus::kOk) continue;
+    ++e.ok;
     e.max_horizontal_m = std::max(e.max_horizontal_m, d.head<2>().norm());
     e.horizontal_m.push_back(d.head<2>().norm());
     e.max_3d_m = std::max(e.max_3d_m, d.norm());
@@ -78,16 +107,23 @@ TEST(StructureAnchor, AnchorsSyntheticQueryFromItsOwnStructure) {
       "max %.3f deg, %.2f s per anchor\n",
       e.ok, e.total, e.max_horizontal_m, e.max_3d_m, e.max_rotation_deg, e.seconds);
   ASSERT_GE(e.total, 5);
-  EXPECT_GE(e.ok * 10, e.total * 9);
-  std::vector<double> h = e.horizontal_m;
-  std::sort(h.begin(), h.end());
-  ASSERT_FALSE(h.empty());
-  // Targets (issue 17): <= 0.05 m and 0.1 degrees: not reached. Reached: 9 of 9 ok, horizontal
-  // median 0.34 m, max 2.26 m, rotation max 0.88 deg (the query's VO at 3 Hz: under the true
-  // similarity only a third of its points lie within 0.2 m of the map). Asserted with a margin.
-  EXPECT_LE(h[h.size() / 2], 0.6);
-  EXPECT_LE(e.max_horizontal_m, 3.0);
-  EXPECT_LE(e.max_rotation_deg, 1.2);
+  // Targets (issue 17): <= 0.05 m and 0.1 degrees: not reached. This street does not fix the
+  // structure along the road: the inlier count of the fit moved along it stays within its
+  // counting noise over metres, even against the world's exact surfaces or a dense 360-degree
+  // LiDAR (README), so where the fit lands along the road is chance (0.2-2.3 m off). The anchors
+  // say so: along_sigma_m from that profile (1.2-4 m here; the Hessian's alone said 0.03 m), and
+  // all are rejected as weak along the road. Before, all 9 were ok at up to 2.26 m.
+  EXPECT_EQ(e.posed, e.total);
+  for (size_t i = 0; i < e.along_m.size(); ++i) {
+    EXPECT_LE(std::abs(e.along_m[i]), 2.0 * e.along_sigma_m[i] + 0.1) << "posed anchor " << i;
+  }
+  // An anchor called ok is right (none is here); across the road and in rotation the structure
+  // does place the camera (reached: 0.38 m, 0.94 deg, tied to where it lands along the road).
+  if (e.ok > 0) {
+    EXPECT_LE(e.max_horizontal_m, 0.3);
+  }
+  EXPECT_LE(e.max_across_m, 0.6);
+  EXPECT_LE(e.max_rotation_posed_deg, 1.3);
 }
 
 TEST(StructureAnchor, FramesWithoutVoPoseAreLostAndBadInputThrows) {

@@ -125,6 +125,8 @@ TEST(StructureRegistration, RecoversExactSimilarity) {
   EXPECT_EQ(r.num_inliers, static_cast<int>(structure.size()));
   EXPECT_LT(r.rms_m, 1e-6);
   EXPECT_GT(r.along_information, 0.02);
+  EXPECT_EQ(r.along_ambiguity_m, 0.0);
+  EXPECT_LT(r.along_sigma_m, 1e-6);
 }
 
 // Independent samples of the surfaces with 2 cm noise, 20 % outliers, a car that moved (in the
@@ -169,6 +171,9 @@ TEST(StructureRegistration, RobustToOutliersMovingObjectsAndPriorNoise) {
     EXPECT_GT(r.inlier_share, 0.6);
     EXPECT_LT(r.inlier_share, 0.9);  // the outliers and the moving car are not inliers
     EXPECT_LT(r.rms_m, 0.05);
+    // The windows fix the street along x: a move by the finest distance loses points.
+    EXPECT_EQ(r.along_ambiguity_m, 0.0);
+    EXPECT_GT(r.along_points_on_surface, 0);
   }
 }
 
@@ -190,6 +195,11 @@ TEST(StructureRegistration, ReportsDegenerateAlongTheRoad) {
       structure, map, Perturb(truth, {2.0, 0.0, 0.0}, 0.0, 1.0), Eigen::Vector3d::UnitX(), options);
   ASSERT_TRUE(r.success) << r.message;
   EXPECT_LT(r.along_information, 1e-3);
+  // Moved anywhere along it within the search's reach, as many points lie on the map (the
+  // profile steps by the finest distance).
+  const double finest = options.max_distances_m.back();
+  EXPECT_GT(r.along_ambiguity_m, options.search_along_m - finest);
+  EXPECT_GT(r.along_sigma_m, 0.5 * (options.search_along_m - finest));
 }
 
 TEST(StructureRegistration, TooFewPointsIsAValue) {

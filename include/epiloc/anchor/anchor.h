@@ -144,7 +144,9 @@ struct AnchorResult {
                                           // correspondence distance (num_inliers of them)
   double residual_m = NAN;                // their RMS distance to the map's surface
   double along_information = NAN;         // mean (normal . road direction)^2 of the inliers
-  double along_sigma_m = NAN;             // translation sigma along the road from the Hessian
+  double along_sigma_m = NAN;             // translation sigma along the road: the Hessian's, or
+                                          // half the stretch the along-track profile does not
+                                          // tell apart (structure_registration.h), if larger
   int structure_points = 0;               // VO points registered
 };
 

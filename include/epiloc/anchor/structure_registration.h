@@ -23,8 +23,9 @@
 // within the finest distance (inliers), their RMS distance to the plane, the scale relative to the
 // seed's, and the conditioning of the problem along a given direction (the road): the information
 // the inliers' normals carry along it, and the standard deviation of the translation along it from
-// the Gauss-Newton Hessian. Frames: map = the cloud's frame (metres); world = the reconstruction's
-// frame (its units).
+// the Gauss-Newton Hessian or, where larger, from the profile of points on the map's surface
+// over moves along it (a street of facades is not fixed along the road by its structure). Frames:
+// map = the cloud's frame (metres); world = the reconstruction's frame (its units).
 #pragma once
 
 #include <memory>
@@ -97,7 +98,16 @@ struct StructureRegistration {
   // centroid) along d, metres, from the final Hessian and residual.
   double along_information = 0.0;
   double along_sigma_m = 0.0;
-  double condition = 0.0;  // largest / smallest eigenvalue of the translation block
+  // The Hessian's sigma holds only while the pairs do: moved along the road, a street of facades
+  // finds other pairs as good. So the fit is also moved along d in steps of the finest distance
+  // within the search's reach (search_along_m; without a search, the first correspondence
+  // distance), re-paired, and its points within the finest level's loss scale of the map's
+  // surface counted: along_ambiguity_m is the largest move whose count is within twice its
+  // Poisson deviation (2 sqrt(count)) of the fit's (the reach: nothing fixes it), and
+  // along_sigma_m is at least half of it (that interval taken as +-2 sigma).
+  double along_ambiguity_m = 0.0;
+  int along_points_on_surface = 0;  // the fit's count in that profile
+  double condition = 0.0;           // largest / smallest eigenvalue of the translation block
 };
 
 // The map with a kd-tree over its points and normals computed on demand. Not thread-safe (the
