@@ -2,7 +2,8 @@
 # tools/test_sanitizers.sh [CTEST ARGS...]: builds the whole suite with AddressSanitizer and
 # UndefinedBehaviorSanitizer (-fsanitize=address,undefined, any report is fatal) into build-asan/
 # and runs it with CTest; extra arguments go to ctest (e.g. -R core_ -j 1). EPILOC_ASAN_TARGETS
-# (space-separated build targets) builds only those, for a quicker partial run.
+# (space-separated build targets) builds only those, for a quicker partial run; EPILOC_ASAN_JOBS
+# (default: all cores) is the build's parallelism, e.g. 1 on a machine shared with a benchmark.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${EPILOC_ASAN_BUILD_DIR:-$root/build-asan}
@@ -14,7 +15,7 @@ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${launc
   -DCMAKE_CXX_FLAGS="$flags" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" > /dev/null
 targets=()
 for t in ${EPILOC_ASAN_TARGETS:-}; do targets+=(--target "$t"); done
-nice -n 15 cmake --build "$build" -j "$(nproc)" "${targets[@]}"
+nice -n 15 cmake --build "$build" -j "${EPILOC_ASAN_JOBS:-$(nproc)}" "${targets[@]}"
 # Leaks are reported too; OpenCV's and FFmpeg's process-lifetime caches are not leaks of ours.
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$root/tools/lsan.supp:print_suppressions=0}
