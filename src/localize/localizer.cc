@@ -68,29 +68,34 @@ int BestSupportedPair(const std::vector<PairResult>& pairs) {
   return best < 0 ? -1 : pairs[best].db_index;
 }
 
+// How many valid pairs place their database camera ahead of the vehicle (q_z > 0) and behind it.
+struct Sides {
+  int ahead = 0, behind = 0;
+};
+Sides CountSides(const std::vector<PairResult>& pairs) {
+  Sides sides;
+  for (const PairResult& p : pairs) {
+    if (p.valid) (p.signed_distance > 0 ? sides.ahead : sides.behind) += 1;
+  }
+  return sides;
+}
+
 // Which side of the evaluated window the query lies on, from the signs of q_z: +1 if every valid
 // database camera is ahead (the query is behind the window), -1 if every one is behind, 0 if the
 // window brackets the query (or there is too little evidence to say).
 int OutsideWindow(const std::vector<PairResult>& pairs) {
-  int ahead = 0, behind = 0;
-  for (const PairResult& p : pairs) {
-    if (!p.valid) continue;
-    (p.signed_distance > 0 ? ahead : behind) += 1;
-  }
-  if (ahead + behind < 3) return 0;
-  if (behind == 0) return +1;
-  if (ahead == 0) return -1;
+  const Sides sides = CountSides(pairs);
+  if (sides.ahead + sides.behind < 3) return 0;
+  if (sides.behind == 0) return +1;
+  if (sides.ahead == 0) return -1;
   return 0;
 }
 
 // Whether the valid pairs place the vehicle between database cameras: at least one ahead of it
 // and one behind it, three or more in all.
 bool Brackets(const std::vector<PairResult>& pairs) {
-  int ahead = 0, behind = 0;
-  for (const PairResult& p : pairs) {
-    if (p.valid) (p.signed_distance > 0 ? ahead : behind) += 1;
-  }
-  return ahead > 0 && behind > 0 && ahead + behind >= 3;
+  const Sides sides = CountSides(pairs);
+  return sides.ahead > 0 && sides.behind > 0 && sides.ahead + sides.behind >= 3;
 }
 
 }  // namespace
@@ -333,14 +338,9 @@ std::vector<PairResult> Localizer::Impl::Initialise(const PreparedFrame& query,
   }
   std::sort(sweep.begin(), sweep.end());
   const std::vector<PairResult> coarse = Evaluate(query, sweep);
-  int best = -1;
-  for (size_t k = 0; k < coarse.size(); ++k) {
-    if (coarse[k].valid && (best < 0 || coarse[k].num_inliers > coarse[best].num_inliers)) {
-      best = static_cast<int>(k);
-    }
-  }
+  const int best = BestSupportedPair(coarse);
   if (best < 0) return coarse;
-  const double s0 = db_s[coarse[best].db_index];
+  const double s0 = db_s[best];
   ++num_reinitialisations;
   *reinitialised = true;
   return Evaluate(query, Window(s0 - options.track_window_m, s0 + options.track_window_m));
