@@ -145,7 +145,7 @@ PnpResult EstimateAbsolutePose(const std::vector<Eigen::Vector2d>& points2d,
                                  result.num_inliers, n, options.min_inliers);
     return result;
   }
-  // Covariance of the camera centre from the inliers' Gauss-Newton normal matrix: x_cam =
+  // Covariance of the pose from the inliers' Gauss-Newton normal matrix: x_cam =
   // R (X - C) with R perturbed on the left by exp([dθ]x), so dx_cam/dθ = -[x_cam]x and
   // dx_cam/dC = -R; the pixel noise is the inliers' own residual scale (RSS over n - 6).
   Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
@@ -168,10 +168,11 @@ PnpResult EstimateAbsolutePose(const std::vector<Eigen::Vector2d>& points2d,
   const double sigma2 = sum / dof;
   Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(normal);
   if (lu.isInvertible()) {
-    result.center_covariance = sigma2 * lu.inverse().bottomRightCorner<3, 3>();
+    result.pose_covariance = sigma2 * lu.inverse();
   } else {
-    result.center_covariance = Eigen::Matrix3d::Identity() * 1e6;
+    result.pose_covariance = Eigen::Matrix<double, 6, 6>::Identity() * 1e6;
   }
+  result.center_covariance = result.pose_covariance.bottomRightCorner<3, 3>();
   result.success = true;
   return result;
 }

@@ -33,6 +33,8 @@ void RefineOptions::Check() const {
                    search_ratio > 0 && search_ratio <= 1,
                "refine: invalid search by projection (radius {} px, distance {}, ratio {})",
                search_radius_px, max_descriptor_distance, search_ratio);
+  EPILOC_CHECK(std::isfinite(search_sigmas) && search_sigmas >= 0,
+               "refine: search_sigmas must be >= 0, got {}", search_sigmas);
   pnp.Check();
 }
 
@@ -104,6 +106,7 @@ PoseRefinement SolveAndCheck(const Camera& camera,
   out.sigma_along_m = std::sqrt(std::max(0.0, along_axis.dot(pnp.center_covariance * along_axis)));
   out.sigma_horizontal_m =
       std::sqrt(std::max(0.0, pnp.center_covariance(0, 0) + pnp.center_covariance(1, 1)));
+  out.pose_covariance = pnp.pose_covariance;
   out.status = RefineStatus::kOk;
   return out;
 }
@@ -195,7 +198,25 @@ PoseRefinement RefineByProjection(
   std::vector<Claim> claims(num_query);
   std::unordered_map<int64_t, bool> seen;
   const Rigid3d cam_from_enu = initial.enu_from_cam.Inverse();
+  const Eigen::Matrix3d rotation = cam_from_enu.rotation.toRotationMatrix();
   const double r2 = radius * radius;
+  // A projection's variance along its major axis under the initial pose's covariance: the
+  // camera coordinates x = R (X - C) move by -[x]x dθ - R dC (PnpResult::pose_covariance).
+  const auto projection_variance = [&](const Eigen::Vector3d& x) {
+    Eigen::Matrix<double, 2, 3> dproj;
+    dproj << camera.fx / x.z(), 0.0, -camera.fx * x.x() / (x.z() * x.z()), 0.0,
+        camera.fy / x.z(), -camera.fy * x.y() / (x.z() * x.z());
+    Eigen::Matrix3d skew;
+    skew << 0.0, -x.z(), x.y(), x.z(), 0.0, -x.x(), -x.y(), x.x(), 0.0;
+    Eigen::Matrix<double, 2, 6> j;
+    j.leftCols<3>() = -dproj * skew;
+    j.rightCols<3>() = -dproj * rotation;
+    const Eigen::Matrix2d c = j * initial.pose_covariance * j.transpose();
+    return 0.5 * (c.trace() + std::hypot(c(0, 0) - c(1, 1), 2.0 * c(0, 1)));
+  };
+  const double max_variance = (radius / std::max(options.search_sigmas, 1e-9)) *
+                              (radius / std::max(options.search_sigmas, 1e-9));
+  int num_projected = 0, num_predicted = 0;
   for (const auto& frame : local_map) {
     if (!frame) continue;
     for (int k = 0; k < frame->size(); ++k) {
@@ -208,6 +229,9 @@ PoseRefinement RefineByProjection(
           uv.y() > camera.height - 1 + radius) {
         continue;
       }
+      ++num_projected;
+      if (projection_variance(x) > max_variance) continue;
+      ++num_predicted;
       const float* d = frame->root_sift.data() + static_cast<size_t>(k) * 128;
       const auto [cx, cy] = cell_of(uv.x(), uv.y());
       double best = INFINITY, second = INFINITY;
@@ -235,6 +259,7 @@ PoseRefinement RefineByProjection(
       if (best < claims[best_q].distance) claims[best_q] = {best, id, frame->point_in_enu[k]};
     }
   }
+  if (2 * num_predicted < num_projected) return initial;
   std::vector<Eigen::Vector2d> pixels;
   std::vector<Eigen::Vector3d> points;
   for (int q = 0; q < num_query; ++q) {

@@ -1,5 +1,7 @@
 #include "epiloc/localize/pose_refiner.h"
 
+#include <algorithm>
+#include <memory>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -138,6 +140,86 @@ TEST(PoseRefiner, APoseThatDisagreesWithTheSequenceIsRejected) {
   EXPECT_NE(side.message.find("off the route"), std::string::npos) << side.message;
 }
 
+// The local map of MakeScene's points (one database frame), each with its own random unit
+// RootSIFT descriptor, and query keypoints where the map projects under `pose`, carrying those
+// descriptors: a repeated pattern that matches one period off.
+struct GuidedScene {
+  Scene scene;
+  std::vector<std::shared_ptr<const FrameMapPoints>> local_map;
+  std::vector<float> query_root_sift;
+};
+GuidedScene MakeGuidedScene(const Rigid3d& keypoints_from_pose) {
+  GuidedScene g;
+  g.scene = MakeScene(150, 30.0, 0.0, 11);
+  auto map = std::make_shared<FrameMapPoints>();
+  std::mt19937 rng(12);
+  std::normal_distribution<float> normal(0.f, 1.f);
+  const Rigid3d cam_from_enu = keypoints_from_pose.Inverse();
+  std::vector<Eigen::Vector2d> pixels;
+  for (const PairResult& pair : g.scene.pairs) {
+    for (const PointMatch& m : pair.point_matches) {
+      if (std::find(map->point_id.begin(), map->point_id.end(), m.point_id) !=
+          map->point_id.end()) {
+        continue;
+      }
+      const Eigen::Vector3d c = cam_from_enu * m.point_in_enu;
+      if (c.z() <= 1) continue;
+      std::vector<float> d(128);
+      float norm = 0.f;
+      for (float& v : d) {
+        v = std::abs(normal(rng));
+        norm += v * v;
+      }
+      for (float& v : d) v /= std::sqrt(norm);
+      map->point_id.push_back(m.point_id);
+      map->point_in_enu.push_back(m.point_in_enu);
+      map->root_sift.insert(map->root_sift.end(), d.begin(), d.end());
+      g.query_root_sift.insert(g.query_root_sift.end(), d.begin(), d.end());
+      pixels.push_back(g.scene.camera.Project(c));
+    }
+  }
+  g.scene.keypoints.resize(static_cast<int>(pixels.size()), 4);
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    g.scene.keypoints.row(static_cast<int>(i)) << static_cast<float>(pixels[i].x()),
+        static_cast<float>(pixels[i].y()), 3.0f, 0.0f;
+  }
+  g.local_map.push_back(map);
+  return g;
+}
+
+TEST(PoseRefiner, AnUncertainPoseIsNotConfirmedByWhatLiesNearItsOwnProjections) {
+  // The initial pose is 0.5 m behind the camera, and the query sees the map's pattern exactly
+  // where that wrong pose projects it (a pattern matched one period off). Searching by projection
+  // around the wrong pose finds a complete, consistent set of matches for it.
+  Scene truth = MakeScene(150, 30.0, 0.0, 11);
+  PoseRefinement initial;
+  initial.status = RefineStatus::kOk;
+  initial.enu_from_cam = truth.enu_from_cam;
+  initial.enu_from_cam.translation.y() -= 0.5;
+  initial.num_inliers = 20;
+  initial.sigma_along_m = 0.35;
+  const GuidedScene g = MakeGuidedScene(initial.enu_from_cam);
+  // Certain of the initial pose (centre sigma 1 mm, rotation 1e-5 rad): the search runs and
+  // takes the set it finds (what it did whatever the initial pose's covariance).
+  initial.pose_covariance = Eigen::Matrix<double, 6, 6>::Identity() * 1e-10;
+  initial.pose_covariance.bottomRightCorner<3, 3>() *= 1e4;
+  const PoseRefinement confident =
+      RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map,
+                         initial, 29.5, g.scene.route, RefineOptions());
+  ASSERT_EQ(confident.status, RefineStatus::kOk) << confident.message;
+  EXPECT_GT(confident.num_inliers, 100);
+  // Uncertain of it (0.35 m along the route, as PnP on a few dozen matches in a turn): its points'
+  // projections are uncertain by far more than the search radius, so the search cannot tell the
+  // pattern's period apart and the initial pose is kept, with its sigma.
+  initial.pose_covariance(4, 4) = 0.35 * 0.35;
+  const PoseRefinement uncertain =
+      RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map,
+                         initial, 29.5, g.scene.route, RefineOptions());
+  EXPECT_EQ(uncertain.num_inliers, 20);
+  EXPECT_EQ(uncertain.sigma_along_m, 0.35);
+  EXPECT_LT((uncertain.enu_from_cam.translation - initial.enu_from_cam.translation).norm(), 1e-12);
+}
+
 TEST(PoseRefiner, OptionsAreChecked) {
   RefineOptions options;
   options.min_correspondences = 3;
@@ -145,6 +227,9 @@ TEST(PoseRefiner, OptionsAreChecked) {
   options = RefineOptions();
   options.max_along_disagreement_m = 0;
   ExpectError([&] { options.Check(); }, {"max_along_disagreement_m"});
+  options = RefineOptions();
+  options.search_sigmas = -1;
+  ExpectError([&] { options.Check(); }, {"search_sigmas"});
 }
 
 }  // namespace

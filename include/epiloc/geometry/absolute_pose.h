@@ -33,6 +33,11 @@ struct PnpResult {
   // Covariance of the camera centre in the world frame (m^2), from the inliers' Gauss-Newton
   // normal matrix and their residual scale; meaningful when success.
   Eigen::Matrix3d center_covariance = Eigen::Matrix3d::Zero();
+  // The whole pose's covariance (rad^2, m^2): rotation first, as a perturbation
+  // exp([dθ]x) applied on the left of cam_from_world's rotation, then the camera centre in the
+  // world frame. The camera coordinates x = R (X - C) of a world point X move by
+  // -[x]x dθ - R dC, which propagates it to the point's projection.
+  Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();
   std::string message;  // why it failed ("" on success)
 };
 

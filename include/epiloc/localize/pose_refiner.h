@@ -40,6 +40,13 @@ struct RefineOptions {
   // RootSIFT distance accepted, ratio of best to second best within the radius.
   bool search_by_projection = true;
   double search_radius_px = 4.0;
+  // A point is searched only when the initial pose predicts its projection to within the radius
+  // at this many standard deviations (the major axis of its 2-D covariance; 3: 99 % of a 2-D
+  // Gaussian). When fewer than half of the projected points are, the initial pose is kept: its
+  // errors reach beyond the radius, and what the search finds near the wrong projections is a
+  // consistent but wrong set of matches that only shrinks the covariance (a turn into the street,
+  // viewing the survey's structure 60-70 degrees across).
+  double search_sigmas = 3.0;
   double max_descriptor_distance = 0.7;
   double search_ratio = 0.9;
   double local_map_behind_m = 2.0;  // database frames searched by projection: this far behind
@@ -64,6 +71,8 @@ struct PoseRefinement {
   // horizontally (the root of the horizontal covariance's trace), metres.
   double sigma_along_m = 0.0;
   double sigma_horizontal_m = 0.0;
+  // The pose's covariance (PnpResult::pose_covariance: rotation of cam_from_enu, camera centre).
+  Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
 // Refines the pose of a query frame (undistorted pinhole `camera`, its `keypoints`) from the
@@ -78,7 +87,8 @@ PoseRefinement RefinePose(const Camera& camera,
 
 // Search by projection (as feature-based SLAM tracks its local map): the points the window's
 // database frames see are projected with the `initial` pose (kOk); each is matched to the query
-// feature within search_radius_px of its projection with the nearest RootSIFT descriptor (at
+// feature within search_radius_px of its projection (when the initial pose's covariance predicts
+// it that closely, see search_sigmas) with the nearest RootSIFT descriptor (at
 // most max_descriptor_distance, and below search_ratio times the second nearest within the
 // radius; a feature claimed by several points keeps the closest descriptor); PnP again on these
 // correspondences, with the same checks. Returns the new pose if it is ok with more inliers than
