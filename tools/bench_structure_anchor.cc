@@ -60,6 +60,30 @@ Similarity3 FitTrue(const std::vector<Frame>& frames) {
   return s;
 }
 
+// The along-track profile of a registration: for shifts of -2..2 m along the route from the
+// true similarity, how many points lie within 0.1 m of the map's local plane (and a map point
+// within 0.4 m), and how many within 0.2 m. Prints " shift:count/count" on one line.
+void PrintShiftProfile(const std::vector<Eigen::Vector3d>& points,
+                       StructureMap& map,
+                       const Similarity3& s_true,
+                       const Eigen::Vector3d& along) {
+  for (double a = -2.0; a <= 2.01; a += 0.2) {
+    Similarity3 s = s_true;
+    s.translation += a * along;
+    int c1 = 0, c2 = 0;
+    for (const Eigen::Vector3d& p : points) {
+      const Eigen::Vector3d x = s * p;
+      const int n = map.Nearest(x, 0.4);
+      if (n < 0) continue;
+      const double d = (map.Projector(n).cast<double>() * (x - map.Point(n).cast<double>())).norm();
+      c1 += d < 0.1;
+      c2 += d < 0.2;
+    }
+    std::printf(" %+.1f:%d/%d", a, c1, c2);
+  }
+  std::printf("\n");
+}
+
 void Report(const char* label, const Similarity3& s, const std::vector<Frame>& frames) {
   std::vector<double> h, rot;
   double al = 0, ac = 0, up = 0, yaw = 0, tilt = 0;
@@ -259,22 +283,7 @@ void Run() {
     const auto f1 = RegisterStructure(chosen, smap, s_true, along, nos);
     Report("   full ICP from truth", f1.map_from_world, frames);
     std::printf("   shift: count(plane<0.1 & point<0.4) / (plane<0.2):");
-    for (double a = -2.0; a <= 2.01; a += 0.2) {
-      Similarity3 s = s_true;
-      s.translation += a * along;
-      int c1 = 0, c2 = 0;
-      for (const Eigen::Vector3d& p : chosen) {
-        const Eigen::Vector3d x = s * p;
-        const int n = smap.Nearest(x, 0.4);
-        if (n < 0) continue;
-        const double d =
-            (smap.Projector(n).cast<double>() * (x - smap.Point(n).cast<double>())).norm();
-        c1 += d < 0.1;
-        c2 += d < 0.2;
-      }
-      std::printf(" %+.1f:%d/%d", a, c1, c2);
-    }
-    std::printf("\n");
+    PrintShiftProfile(chosen, smap, s_true, along);
   }
   {
     // The along-track profile against the world's exact surfaces (a perfect map).
@@ -335,22 +344,7 @@ void Run() {
     f = RegisterStructure(points, dmap, s_true, along, nos);
     Report("  full ICP from truth", f.map_from_world, frames);
     std::printf("dense map shift: count(plane<0.1 & point<0.4) / (plane<0.2):");
-    for (double a = -2.0; a <= 2.01; a += 0.2) {
-      Similarity3 s = s_true;
-      s.translation += a * along;
-      int c1 = 0, c2 = 0;
-      for (const Eigen::Vector3d& p : points) {
-        const Eigen::Vector3d x = s * p;
-        const int n = dmap.Nearest(x, 0.4);
-        if (n < 0) continue;
-        const double d =
-            (dmap.Projector(n).cast<double>() * (x - dmap.Point(n).cast<double>())).norm();
-        c1 += d < 0.1;
-        c2 += d < 0.2;
-      }
-      std::printf(" %+.1f:%d/%d", a, c1, c2);
-    }
-    std::printf("\n");
+    PrintShiftProfile(points, dmap, s_true, along);
     for (double a : {-1.0, 0.0, 1.0}) {
       Similarity3 s = s_true;
       s.translation += a * along;

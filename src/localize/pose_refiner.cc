@@ -204,8 +204,8 @@ PoseRefinement RefineByProjection(
   // camera coordinates x = R (X - C) move by -[x]x dθ - R dC (PnpResult::pose_covariance).
   const auto projection_variance = [&](const Eigen::Vector3d& x) {
     Eigen::Matrix<double, 2, 3> dproj;
-    dproj << camera.fx / x.z(), 0.0, -camera.fx * x.x() / (x.z() * x.z()), 0.0,
-        camera.fy / x.z(), -camera.fy * x.y() / (x.z() * x.z());
+    dproj << camera.fx / x.z(), 0.0, -camera.fx * x.x() / (x.z() * x.z()), 0.0, camera.fy / x.z(),
+        -camera.fy * x.y() / (x.z() * x.z());
     Eigen::Matrix3d skew;
     skew << 0.0, -x.z(), x.y(), x.z(), 0.0, -x.x(), -x.y(), x.x(), 0.0;
     Eigen::Matrix<double, 2, 6> j;

@@ -39,8 +39,8 @@ Scene MakeScene(int n, double s_true, double lateral, uint32_t seed) {
   const double yaw = 0.02;  // rad
   Eigen::Matrix3d r;
   r.col(0) = Eigen::Vector3d(std::cos(yaw), -std::sin(yaw), 0);  // camera x: east (right)
-  r.col(1) = Eigen::Vector3d(0, 0, -1);                           // y: down
-  r.col(2) = Eigen::Vector3d(std::sin(yaw), std::cos(yaw), 0);    // z: north (forward)
+  r.col(1) = Eigen::Vector3d(0, 0, -1);                          // y: down
+  r.col(2) = Eigen::Vector3d(std::sin(yaw), std::cos(yaw), 0);   // z: north (forward)
   scene.enu_from_cam = Rigid3d::FromMatrix(r, Eigen::Vector3d(lateral, s_true, 1.6));
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> along(s_true + 5, s_true + 40), height(0.0, 6.0),
@@ -204,8 +204,8 @@ TEST(PoseRefiner, AnUncertainPoseIsNotConfirmedByWhatLiesNearItsOwnProjections) 
   initial.pose_covariance = Eigen::Matrix<double, 6, 6>::Identity() * 1e-10;
   initial.pose_covariance.bottomRightCorner<3, 3>() *= 1e4;
   const PoseRefinement confident =
-      RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map,
-                         initial, 29.5, g.scene.route, RefineOptions());
+      RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map, initial,
+                         29.5, g.scene.route, RefineOptions());
   ASSERT_EQ(confident.status, RefineStatus::kOk) << confident.message;
   EXPECT_GT(confident.num_inliers, 100);
   // Uncertain of it (0.35 m along the route, as PnP on a few dozen matches in a turn): its points'
@@ -213,8 +213,8 @@ TEST(PoseRefiner, AnUncertainPoseIsNotConfirmedByWhatLiesNearItsOwnProjections) 
   // pattern's period apart and the initial pose is kept, with its sigma.
   initial.pose_covariance(4, 4) = 0.35 * 0.35;
   const PoseRefinement uncertain =
-      RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map,
-                         initial, 29.5, g.scene.route, RefineOptions());
+      RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map, initial,
+                         29.5, g.scene.route, RefineOptions());
   EXPECT_EQ(uncertain.num_inliers, 20);
   EXPECT_EQ(uncertain.sigma_along_m, 0.35);
   EXPECT_LT((uncertain.enu_from_cam.translation - initial.enu_from_cam.translation).norm(), 1e-12);
