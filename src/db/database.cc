@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -689,10 +690,18 @@ std::vector<DbFramePoint> Database::ReadFramePoints(image_t image_id) const {
   std::vector<DbFramePoint> points;
   while (query.Step()) {
     DbFramePoint p;
-    p.feature_index = static_cast<int>(query.Int());
+    // Checked before narrowing: a damaged file's index may be negative or past int (the schema's
+    // CHECK is not enforced on files other tools wrote), and callers index feature rows with it.
+    const int64_t feature_index = query.Int();
     p.point_id = query.Int();
     const double e = query.Double(), n = query.Double(), u = query.Double();
     p.position_in_enu = Eigen::Vector3d(e, n, u);
+    if (feature_index < 0 || feature_index > std::numeric_limits<int>::max() ||
+        !p.position_in_enu.allFinite()) {
+      Throw("{}: corrupt observation of 3-D point {} by image {} (feature {}, position {} {} {})",
+            path_, p.point_id, image_id, feature_index, e, n, u);
+    }
+    p.feature_index = static_cast<int>(feature_index);
     points.push_back(p);
   }
   return points;

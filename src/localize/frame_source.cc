@@ -138,7 +138,10 @@ std::optional<QueryFrame> VideoFrameSource::Next() {
     frame.timestamp_s =
         options_.start_time_s.value_or(0.0) + capture_->capture.get(cv::CAP_PROP_POS_MSEC) / 1000.0;
   }
-  CheckImageSize(frame.image, camera_, fmt::format("{} frame {}", video_, frame.frame));
+  // Messages about the frame (a featureless image, a wrong size) name the video and the frame's
+  // index in it, as a drive's frames name their frames CSV line.
+  frame.where = fmt::format("{}{} frame {}", device_ ? "camera " : "", video_, frame.frame);
+  CheckImageSize(frame.image, camera_, frame.where);
   if (!options_.gnss.samples.empty()) {
     if (const auto fix = options_.gnss.Interpolate(frame.timestamp_s, options_.max_gap_s)) {
       frame.gnss = fix->position;

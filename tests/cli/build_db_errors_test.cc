@@ -16,6 +16,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
 
 #include "epiloc/core/error.h"
 #include "epiloc/survey/build_db.h"
@@ -320,6 +321,36 @@ TEST_F(BuildDbErrors, QueryFramesWithoutFeaturesAreWarnedAbout) {
     ++warnings;
   }
   EXPECT_EQ(warnings, 4) << result.stderr_text;
+}
+
+// The same for frames read from a video: the warning names the video and the frame's index in it
+// (a video has no frames CSV line to name).
+TEST_F(BuildDbErrors, VideoFramesWithoutFeaturesNameTheVideo) {
+  const std::string video = (root_ / "black.avi").string();
+  {
+    cv::VideoWriter writer(video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10.0,
+                           cv::Size(320, 240));
+    ASSERT_TRUE(writer.isOpened());
+    for (int i = 0; i < kFrames; ++i) {
+      cv::Mat grey = cv::imread((root_ / fmt::format("good/images/{:04d}.png", i)).string(),
+                                cv::IMREAD_GRAYSCALE);
+      if (i == 2 || i == 4) grey.setTo(0);
+      cv::Mat colour;
+      cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
+      writer.write(colour);
+    }
+  }
+  const fs::path good = root_ / "good";
+  const RunResult result = RunEpiloc(fmt::format(
+      "localize --db {} --video {} --calibration {} --gnss {} --video-start-s 100 --out {}",
+      db_.string(), video, (good / "drive.json").string(), (good / "gnss.csv").string(),
+      (root_ / "black_video.csv").string()));
+  EXPECT_EQ(result.exit_code, 0) << result.stderr_text;
+  EXPECT_THAT(result.stderr_text, HasSubstr(video + " frame 2: frame 2 gave no SIFT features"));
+  EXPECT_THAT(result.stderr_text, HasSubstr(video + " frame 4: frame 4 gave no SIFT features"));
+  EXPECT_THAT(result.stderr_text, Not(HasSubstr("frame 3 gave")));
+  EXPECT_THAT(result.stderr_text,
+              HasSubstr("2 of 6 query frames gave no SIFT features (frames 2, 4)"));
 }
 
 // Issue 18 item 12: a second build of the same drive running at the same time was reported as

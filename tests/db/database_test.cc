@@ -458,5 +458,39 @@ TEST(Database, InvalidPointsAreRejectedWithoutTrace) {
   EXPECT_EQ(db.NumObservations(), 2);
 }
 
+// Found by the db_blob fuzz harness: an observation's feature index from a damaged file (past the
+// schema's CHECK) came back negative, or wrapped to negative from past int, and the localizer
+// indexes the frame's descriptor rows with it.
+TEST_F(DatabaseFileTest, CorruptPointObservationsAreDetected) {
+  const std::string path = PathOf("corrupt_points.db");
+  image_t a = kInvalidImage;
+  {
+    Database db(path);
+    const Sample sample = WriteSample(&db, 5);
+    a = sample.frames[0].frame.image_id;
+    DbPoint3d p;
+    p.position_in_enu = {1, 2, 3};
+    db.WritePoint(p, {{a, 3}, {sample.frames[2].frame.image_id, 4}});
+  }
+  const std::string where = fmt::format("corrupt observation of 3-D point 1 by image {}", a);
+  for (const char* sql : {"UPDATE observations SET feature_index = -1",
+                          "UPDATE observations SET feature_index = 4294967295",
+                          "UPDATE observations SET feature_index = 3; "
+                          "UPDATE points3d SET n_m = 9e999"}) {
+    SCOPED_TRACE(sql);
+    {
+      RawConnection raw(path);
+      raw.Exec("PRAGMA ignore_check_constraints = ON");
+      raw.Exec(sql);
+    }
+    Database db(path, Database::Mode::kReadOnly);
+    ExpectError([&] { db.ReadFramePoints(a); }, {path, where});
+  }
+  RawConnection(path).Exec("UPDATE points3d SET n_m = 2");
+  Database db(path, Database::Mode::kReadOnly);
+  ASSERT_EQ(db.ReadFramePoints(a).size(), 1u);
+  EXPECT_EQ(db.ReadFramePoints(a)[0].feature_index, 3);
+}
+
 }  // namespace
 }  // namespace epiloc

@@ -150,10 +150,10 @@ class Database {
   // Removal, for undoing a failed build: a frame (with its features); a drive (with its frames,
   // and its camera if no other drive uses it); the route and ENU origin (only sensible when no
   // drive remains).
-  // Local 3-D structure (schema version 3). WritePoint stores a point with its observations
-  // (at least 2, distinct frames, features seen by no other point) and returns its id; wrap many
-  // in a Transaction. ReadFramePoints: the points frame `image_id` sees, by ascending
-  // feature_index. ClearPoints removes every point and observation.
+  // Local 3-D structure (schema version 3). WritePoint stores a point with its observations (at
+  // least 2, distinct frames, features seen by no other point) and returns its id; wrap many in a
+  // Transaction. ReadFramePoints: the points frame `image_id` sees, by ascending feature_index
+  // (Error for a negative index or non-finite position). ClearPoints: all points, observations.
   int64_t WritePoint(const DbPoint3d& point, const std::vector<DbObservation>& observations);
   std::vector<DbFramePoint> ReadFramePoints(image_t image_id) const;
   int64_t NumPoints() const;

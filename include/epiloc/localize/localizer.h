@@ -159,7 +159,7 @@ struct QueryFrame {
   std::optional<Geodetic> gnss;  // GNSS fix at timestamp_s, when there is one
   double arrival_s = 0.0;        // when the frame became available (steady clock, for latency)
   double read_seconds = 0.0;     // reading and decoding it (frame sources fill it in)
-  std::string where;  // for messages: "<frames.csv>:<line>" of a drive's frame ("" if none)
+  std::string where;  // for messages: "<frames.csv>:<line>", "<video> frame <index>" or ""
 };
 
 // A frame after feature extraction (Localizer::Prepare), ready for Track.
