@@ -62,12 +62,15 @@ class LasSource : public PointSource {
     EPILOC_CHECK(record_bytes >= format.record_bytes,
                  "{}: LAS point format {} records need {} bytes, the header says {}", path,
                  format_id, format.record_bytes, record_bytes);
-    int64_t num_points = static_cast<int64_t>(u32(107));
+    // Checked as read (a double), before the conversion: a 64-bit count beyond int64 is
+    // undefined behaviour to convert (found by the cloud fuzz harness).
+    double count = static_cast<double>(u32(107));
     if (minor >= 4 && header_bytes >= kLas14HeaderBytes && got >= kLas14HeaderBytes) {
-      num_points = static_cast<int64_t>(LoadScalar(&header[247], ScalarType::kUint64, swap));
+      count = LoadScalar(&header[247], ScalarType::kUint64, swap);
     }
-    EPILOC_CHECK(num_points >= 0 && num_points <= kMaxPointsPerFile,
-                 "{}: corrupt LAS header: {} points", path, num_points);
+    EPILOC_CHECK(count >= 0 && count <= static_cast<double>(kMaxPointsPerFile),
+                 "{}: corrupt LAS header: {:.0f} points", path, count);
+    const int64_t num_points = static_cast<int64_t>(count);
     const uint64_t file_bytes = std::filesystem::file_size(path);
     EPILOC_CHECK(point_offset >= kLegacyHeaderBytes && point_offset <= file_bytes,
                  "{}: bad LAS offset to point data {}", path, point_offset);
