@@ -59,6 +59,20 @@ void PnpOptions::Check() const {
   EPILOC_CHECK(refine_rounds >= 0, "pnp options: refine_rounds must be >= 0");
 }
 
+Eigen::Matrix<double, 2, 6> ProjectionPoseJacobian(const Camera& camera,
+                                                   const Eigen::Vector3d& x,
+                                                   const Eigen::Matrix3d& rotation) {
+  Eigen::Matrix<double, 2, 3> projection;
+  projection << camera.fx / x.z(), 0.0, -camera.fx * x.x() / (x.z() * x.z()), 0.0,
+      camera.fy / x.z(), -camera.fy * x.y() / (x.z() * x.z());
+  Eigen::Matrix3d skew;
+  skew << 0.0, -x.z(), x.y(), x.z(), 0.0, -x.x(), -x.y(), x.x(), 0.0;
+  Eigen::Matrix<double, 2, 6> j;
+  j.leftCols<3>() = -projection * skew;
+  j.rightCols<3>() = -projection * rotation;
+  return j;
+}
+
 PnpResult EstimateAbsolutePose(const std::vector<Eigen::Vector2d>& points2d,
                                const std::vector<Eigen::Vector3d>& points3d,
                                const Camera& camera,
@@ -145,23 +159,15 @@ PnpResult EstimateAbsolutePose(const std::vector<Eigen::Vector2d>& points2d,
                                  result.num_inliers, n, options.min_inliers);
     return result;
   }
-  // Covariance of the pose from the inliers' Gauss-Newton normal matrix: x_cam =
-  // R (X - C) with R perturbed on the left by exp([dθ]x), so dx_cam/dθ = -[x_cam]x and
-  // dx_cam/dC = -R; the pixel noise is the inliers' own residual scale (RSS over n - 6).
+  // Covariance of the pose from the inliers' Gauss-Newton normal matrix (ProjectionPoseJacobian);
+  // the pixel noise is the inliers' own residual scale (RSS over n - 6).
   Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
   const Eigen::Matrix3d r = centred.rotation.toRotationMatrix();
   for (int i = 0; i < n; ++i) {
     if (!result.inlier_mask[i]) continue;
     const Eigen::Vector3d x = r * centred3d[i] + centred.translation;
     if (!(x.z() > 1e-9)) continue;
-    Eigen::Matrix<double, 2, 3> projection;
-    projection << camera.fx / x.z(), 0.0, -camera.fx * x.x() / (x.z() * x.z()), 0.0,
-        camera.fy / x.z(), -camera.fy * x.y() / (x.z() * x.z());
-    Eigen::Matrix3d skew;
-    skew << 0.0, -x.z(), x.y(), x.z(), 0.0, -x.x(), -x.y(), x.x(), 0.0;
-    Eigen::Matrix<double, 2, 6> j;
-    j.leftCols<3>() = -projection * skew;
-    j.rightCols<3>() = -projection * r;
+    const Eigen::Matrix<double, 2, 6> j = ProjectionPoseJacobian(camera, x, r);
     normal += j.transpose() * j;
   }
   const double dof = std::max(1, result.num_inliers - 6);

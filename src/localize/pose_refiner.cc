@@ -200,17 +200,9 @@ PoseRefinement RefineByProjection(
   const Rigid3d cam_from_enu = initial.enu_from_cam.Inverse();
   const Eigen::Matrix3d rotation = cam_from_enu.rotation.toRotationMatrix();
   const double r2 = radius * radius;
-  // A projection's variance along its major axis under the initial pose's covariance: the
-  // camera coordinates x = R (X - C) move by -[x]x dθ - R dC (PnpResult::pose_covariance).
+  // A projection's variance along its major axis under the initial pose's covariance.
   const auto projection_variance = [&](const Eigen::Vector3d& x) {
-    Eigen::Matrix<double, 2, 3> dproj;
-    dproj << camera.fx / x.z(), 0.0, -camera.fx * x.x() / (x.z() * x.z()), 0.0, camera.fy / x.z(),
-        -camera.fy * x.y() / (x.z() * x.z());
-    Eigen::Matrix3d skew;
-    skew << 0.0, -x.z(), x.y(), x.z(), 0.0, -x.x(), -x.y(), x.x(), 0.0;
-    Eigen::Matrix<double, 2, 6> j;
-    j.leftCols<3>() = -dproj * skew;
-    j.rightCols<3>() = -dproj * rotation;
+    const Eigen::Matrix<double, 2, 6> j = ProjectionPoseJacobian(camera, x, rotation);
     const Eigen::Matrix2d c = j * initial.pose_covariance * j.transpose();
     return 0.5 * (c.trace() + std::hypot(c(0, 0) - c(1, 1), 2.0 * c(0, 1)));
   };

@@ -91,6 +91,34 @@ TEST(AbsolutePose, IsRobustToNoiseAndOutliers) {
   EXPECT_EQ(flagged, result.num_inliers);
 }
 
+// The Jacobian against central differences of the projection under the perturbation it
+// documents: rotation exp([dθ]x) R on the left, camera centre C + dC, x_cam = R (X - C).
+TEST(AbsolutePose, ProjectionPoseJacobianMatchesNumericalDifferences) {
+  const Camera camera = TestCamera();
+  const Rigid3d cam_from_world = TestPose();
+  const Eigen::Matrix3d r = cam_from_world.rotation.toRotationMatrix();
+  const Eigen::Vector3d centre = cam_from_world.Inverse().translation;
+  const Eigen::Vector3d point = cam_from_world.Inverse() * Eigen::Vector3d(-3.0, 1.2, 14.0);
+  const auto project = [&](const Eigen::Matrix<double, 6, 1>& delta) {
+    const Eigen::Vector3d dtheta = delta.head<3>();
+    const Eigen::Matrix3d rotated =
+        (dtheta.norm() > 0
+             ? Eigen::AngleAxisd(dtheta.norm(), dtheta.normalized()).toRotationMatrix()
+             : Eigen::Matrix3d::Identity()) *
+        r;
+    return camera.Project(rotated * (point - (centre + delta.tail<3>())));
+  };
+  const Eigen::Matrix<double, 2, 6> j = ProjectionPoseJacobian(camera, r * (point - centre), r);
+  const double h = 1e-6;
+  for (int k = 0; k < 6; ++k) {
+    Eigen::Matrix<double, 6, 1> delta = Eigen::Matrix<double, 6, 1>::Zero();
+    delta(k) = h;
+    const Eigen::Vector2d numeric = (project(delta) - project(-delta)) / (2 * h);
+    EXPECT_NEAR(j(0, k), numeric.x(), 1e-3 * (1 + std::abs(numeric.x()))) << "column " << k;
+    EXPECT_NEAR(j(1, k), numeric.y(), 1e-3 * (1 + std::abs(numeric.y()))) << "column " << k;
+  }
+}
+
 TEST(AbsolutePose, FailsAsAValueWithTooFewCorrespondences) {
   const Correspondences c = MakeCorrespondences(8, 0.0, 0.0, 3);
   const PnpResult result = EstimateAbsolutePose(c.pixels, c.points, TestCamera());

@@ -35,11 +35,18 @@ struct PnpResult {
   Eigen::Matrix3d center_covariance = Eigen::Matrix3d::Zero();
   // The whole pose's covariance (rad^2, m^2): rotation first, as a perturbation
   // exp([dθ]x) applied on the left of cam_from_world's rotation, then the camera centre in the
-  // world frame. The camera coordinates x = R (X - C) of a world point X move by
-  // -[x]x dθ - R dC, which propagates it to the point's projection.
+  // world frame (ProjectionPoseJacobian propagates it to a point's projection).
   Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();
   std::string message;  // why it failed ("" on success)
 };
+
+// The Jacobian (2x6) of the pixel projection of a point at camera coordinates `x_cam` (z > 0)
+// with respect to the pose perturbation of PnpResult::pose_covariance: rotation exp([dθ]x) on the
+// left of cam_from_world's rotation `rotation`, then the camera centre. x_cam = R (X - C) moves
+// by -[x_cam]x dθ - R dC. With it the covariance of a projection is J * pose_covariance * J^T.
+Eigen::Matrix<double, 2, 6> ProjectionPoseJacobian(const Camera& camera,
+                                                   const Eigen::Vector3d& x_cam,
+                                                   const Eigen::Matrix3d& rotation);
 
 // Estimates cam_from_world from pixels `points2d` of the distortion-free pinhole `camera` and
 // their world points `points3d` (same size). Expected failure (too few points or inliers) is a
