@@ -7,6 +7,7 @@
 #include <exception>
 #include <future>
 #include <mutex>
+#include <string>
 #include <thread>
 
 #include <fmt/format.h>
@@ -27,6 +28,18 @@ double Percentile(std::vector<double> values, double p) {
   const size_t lo = static_cast<size_t>(rank);
   const size_t hi = std::min(lo + 1, values.size() - 1);
   return values[lo] + (values[hi] - values[lo]) * (rank - static_cast<double>(lo));
+}
+
+// Names a frame in a message: "<frames.csv>:<line>: frame 7", "<video> frame 7" (the video's
+// `where` already says which frame) or "frame 7".
+std::string FrameSubject(const std::string& where, frame_t frame) {
+  if (where.empty()) return fmt::format("frame {}", frame);
+  const std::string suffix = fmt::format(" frame {}", frame);
+  if (where.size() >= suffix.size() &&
+      where.compare(where.size() - suffix.size(), suffix.size(), suffix) == 0) {
+    return where;
+  }
+  return fmt::format("{}: frame {}", where, frame);
 }
 
 // Frames read and prepared ahead of the tracker, in order, at most `depth` at a time.
@@ -123,9 +136,8 @@ LocalizeRun LocalizeStream(Localizer& localizer,
         none.push_back(prepared.frame);
         if (none.size() <= static_cast<size_t>(kFeaturelessWarnings)) {
           spdlog::warn(
-              "{}frame {} gave no SIFT features (a black, overexposed or textureless "
-              "image){}",
-              prepared.where.empty() ? "" : prepared.where + ": ", prepared.frame,
+              "{} gave no SIFT features (a black, overexposed or textureless image){}",
+              FrameSubject(prepared.where, prepared.frame),
               none.size() == static_cast<size_t>(kFeaturelessWarnings)
                   ? "; further ones are counted at the end"
                   : "");
