@@ -1,5 +1,6 @@
 #include "epiloc/geometry/absolute_pose.h"
 
+#include <cmath>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -117,6 +118,50 @@ TEST(AbsolutePose, ProjectionPoseJacobianMatchesNumericalDifferences) {
     EXPECT_NEAR(j(0, k), numeric.x(), 1e-3 * (1 + std::abs(numeric.x()))) << "column " << k;
     EXPECT_NEAR(j(1, k), numeric.y(), 1e-3 * (1 + std::abs(numeric.y()))) << "column " << k;
   }
+}
+
+// The grouped jackknife over bands of image columns against the model covariance (independent
+// pixel errors): about the same when the errors are independent; much larger when a region of
+// the image shares one error (a part of the map off by a common error), which the model cannot
+// see and which moves the pose by far more than the model's sigma.
+TEST(AbsolutePose, JackknifeAgreesWithTheModelForIndependentErrors) {
+  const Correspondences c = MakeCorrespondences(300, 0.7, 0.0, 5);
+  const PnpResult result = EstimateAbsolutePose(c.pixels, c.points, TestCamera());
+  ASSERT_TRUE(result.success) << result.message;
+  EXPECT_EQ(result.jackknife_groups, 6);
+  const double ratio =
+      result.center_covariance_jackknife.trace() / result.center_covariance.trace();
+  EXPECT_GT(ratio, 0.2);
+  EXPECT_LT(ratio, 5.0);
+}
+
+TEST(AbsolutePose, JackknifeSeesAnErrorSharedByARegionOfTheImage) {
+  Correspondences c = MakeCorrespondences(300, 0.2, 0.0, 6);
+  const Camera camera = TestCamera();
+  for (Eigen::Vector2d& pixel : c.pixels) {
+    if (pixel.x() < camera.width / 6.0) pixel += Eigen::Vector2d(1.5, 0.0);
+  }
+  const PnpResult result = EstimateAbsolutePose(c.pixels, c.points, camera);
+  ASSERT_TRUE(result.success) << result.message;
+  EXPECT_EQ(result.num_inliers, 300);  // the shared error stays within the inlier threshold
+  const Eigen::Vector3d error =
+      result.cam_from_world.Inverse().translation - TestPose().Inverse().translation;
+  const double model = std::sqrt(result.center_covariance.trace());
+  const double jackknife = std::sqrt(result.center_covariance_jackknife.trace());
+  EXPECT_GT(error.norm(), 3.0 * model);  // the model's sigma is not honest here ...
+  EXPECT_LT(error.norm(), 3.0 * jackknife);  // ... the jackknife's is
+}
+
+TEST(AbsolutePose, JackknifeNeedsEnoughInliersPerBand) {
+  const Correspondences c = MakeCorrespondences(20, 0.5, 0.0, 7);
+  const PnpResult result = EstimateAbsolutePose(c.pixels, c.points, TestCamera());
+  ASSERT_TRUE(result.success) << result.message;
+  EXPECT_EQ(result.jackknife_groups, 0);  // 20 inliers: 2 bands of 8, fewer than 3
+  EXPECT_EQ(result.center_covariance_jackknife.trace(), 0.0);
+  PnpOptions off;
+  off.jackknife_groups = 0;
+  const Correspondences many = MakeCorrespondences(200, 0.5, 0.0, 8);
+  EXPECT_EQ(EstimateAbsolutePose(many.pixels, many.points, TestCamera(), off).jackknife_groups, 0);
 }
 
 TEST(AbsolutePose, FailsAsAValueWithTooFewCorrespondences) {

@@ -19,6 +19,15 @@ struct PnpOptions {
   int max_iterations = 10000;        // RANSAC iterations at most
   int min_inliers = 12;              // fewer: no pose
   int refine_rounds = 2;             // LM refinement + inlier re-selection rounds (0 = none)
+  // Groups of the grouped (delete-a-group) jackknife of the camera centre: the inliers are cut
+  // into this many bands of image columns, and the pose is refined once without each band (0 or
+  // fewer than 3 = not computed). See PnpResult::center_covariance_jackknife. Six: a street
+  // scene's facades, roadside and the view ahead each fall in a band of their own, and the
+  // estimate has 5 degrees of freedom per axis (3 bands: 2, too noisy to trust one frame's).
+  int jackknife_groups = 6;
+  // A band needs at least this many inliers (a region, not a lone point); fewer inliers, fewer
+  // bands.
+  int jackknife_min_group = 8;
 
   // Throws Error naming the first invalid field.
   void Check() const;
@@ -37,6 +46,13 @@ struct PnpResult {
   // exp([dθ]x) applied on the left of cam_from_world's rotation, then the camera centre in the
   // world frame (ProjectionPoseJacobian propagates it to a point's projection).
   Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  // The camera centre's covariance from the grouped jackknife over bands of image columns
+  // (m^2): (K-1)/K times the scatter of the K centres refined without one band each. The model
+  // covariance above assumes independent pixel errors; errors shared by a region of the image
+  // (a part of the map triangulated wrong, a moving car, a pattern matched one period off) move
+  // the centre when their band is left out, and show here. Zero when not computed.
+  Eigen::Matrix3d center_covariance_jackknife = Eigen::Matrix3d::Zero();
+  int jackknife_groups = 0;  // bands used (0: not computed)
   std::string message;  // why it failed ("" on success)
 };
 
