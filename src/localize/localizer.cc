@@ -409,27 +409,35 @@ PoseRefinement Localizer::Impl::Refine(const PreparedFrame& query,
 }
 
 void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
+  // sigma_m weighs the measurement; gate_sigma_m (<= sigma_m) decides whether it agrees with
+  // the track or the other measurement. They differ for a 6-DoF pose: its sigma is the larger
+  // of the PnP model's and the jackknife's (errors shared by a region of the image), and it is
+  // gated with the model's alone, so a pose must agree with the track even at the precision its
+  // pixels claim. A weak pose far off (a big jackknife sigma) is refused, not taken in with a
+  // weight that barely moves the track and then reported as a pose.
   struct Measurement {
-    double s_m, sigma_m;
+    double s_m, sigma_m, gate_sigma_m;
     bool* accepted;
     const char* name;
   };
   std::vector<Measurement> measurements;
   if (est->epipolar.valid) {
-    measurements.push_back(
-        {est->epipolar.l_m, est->epipolar.sigma_m, &est->epipolar_accepted, "epipolar"});
+    measurements.push_back({est->epipolar.l_m, est->epipolar.sigma_m, est->epipolar.sigma_m,
+                            &est->epipolar_accepted, "epipolar"});
   }
   if (est->refined && est->refined->status == RefineStatus::kOk) {
     const PoseRefinement& r = *est->refined;
-    est->pnp_sigma_m = std::hypot(r.sigma_along_m, options.evidence.pnp_floor_sigma_m);
-    measurements.push_back({r.projection.s_m, est->pnp_sigma_m, &est->pnp_accepted, "pnp"});
+    const double floor = options.evidence.pnp_floor_sigma_m;
+    est->pnp_sigma_m = std::hypot(r.sigma_along_m, floor);
+    measurements.push_back({r.projection.s_m, est->pnp_sigma_m,
+                            std::hypot(r.sigma_along_model_m, floor), &est->pnp_accepted, "pnp"});
   }
   // The better-supported (smaller sigma) first: when the two disagree, the track takes it.
   std::sort(measurements.begin(), measurements.end(),
             [](const Measurement& a, const Measurement& b) { return a.sigma_m < b.sigma_m; });
   const auto consistent = [](const Measurement& a, const Measurement& b) {
     const double d = a.s_m - b.s_m;
-    return d * d <= 10.83 * (a.sigma_m * a.sigma_m + b.sigma_m * b.sigma_m);
+    return d * d <= 10.83 * (a.gate_sigma_m * a.gate_sigma_m + b.gate_sigma_m * b.gate_sigma_m);
   };
   if (measurements.size() == 2 && !consistent(measurements[0], measurements[1])) {
     est->conflict = true;
@@ -455,7 +463,7 @@ void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
   bool refused = false, accepted = false;
   const double track_sigma_m = filter.sigma_s_m();
   for (const Measurement& m : measurements) {
-    if (filter.Accepts(m.s_m, m.sigma_m)) {
+    if (filter.Accepts(m.s_m, m.gate_sigma_m)) {
       filter.Update(m.s_m, m.sigma_m);
       *m.accepted = true;
       confirmed = true;
@@ -476,7 +484,7 @@ void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
   std::optional<Refused> now;
   for (const Measurement& m : measurements) {
     if (!accepted && m.accepted == &est->pnp_accepted && m.sigma_m < track_sigma_m) {
-      now = Refused{t, m.s_m, m.sigma_m};
+      now = Refused{t, m.s_m, m.sigma_m, m.gate_sigma_m};
     }
   }
   if (now && previous && confirmed) {
@@ -487,7 +495,7 @@ void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
     candidate.Initialise(previous->t, previous->s_m, previous->sigma_m, filter.v_mps(),
                          filter.sigma_v_mps());
     candidate.Predict(t);
-    if (candidate.Accepts(now->s_m, now->sigma_m)) {
+    if (candidate.Accepts(now->s_m, now->gate_sigma_m)) {
       AddNote(&est->note,
               fmt::format("track replaced: it refused two frames that agree with each other "
                           "({:+.2f} m from it)",

@@ -81,7 +81,7 @@ struct Localizer::Impl {
   // measurements and each was better supported than the track (smaller sigma). A second such
   // frame whose measurement agrees with it replaces the track (see Fuse).
   struct Refused {
-    double t, s_m, sigma_m;
+    double t, s_m, sigma_m, gate_sigma_m;
   };
   std::optional<Refused> refused;
 

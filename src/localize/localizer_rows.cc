@@ -152,9 +152,12 @@ std::vector<ResultRow> Localizer::Rows(const FrameEstimate& est) const {
   ResultRow r = MakeRow(est.frame, est.timestamp_s, "pnp", ResultStatus::kOk, ref.projection.s_m,
                         est.db_frame, position, std::hypot(est.pnp_sigma_m, options.survey_sigma_m),
                         ref.num_inliers);
+  const double floor = options.evidence.pnp_floor_sigma_m, survey = options.survey_sigma_m;
+  // The horizontal sigma is the root of the 2x2 covariance's trace: the floor and the survey's
+  // error, one-sigma per axis, enter it once for each of the two axes.
   r.extra[kSigmaHorizontal] =
-      FormatFixed(std::hypot(ref.sigma_horizontal_m, options.evidence.pnp_floor_sigma_m,
-                             options.survey_sigma_m),
+      FormatFixed(std::sqrt(ref.sigma_horizontal_m * ref.sigma_horizontal_m +
+                            2.0 * (floor * floor + survey * survey)),
                   4);
   r.extra[kFlags] = Flags(est);
   const Eigen::Matrix3d rotation = ref.enu_from_cam.rotation.toRotationMatrix();

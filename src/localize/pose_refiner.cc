@@ -103,9 +103,14 @@ PoseRefinement SolveAndCheck(const Camera& camera,
   Eigen::Vector3d along_axis = route.DirectionAt(out.projection.s_m);
   along_axis.z() = 0.0;
   if (along_axis.norm() > 1e-9) along_axis.normalize();
-  out.sigma_along_m = std::sqrt(std::max(0.0, along_axis.dot(pnp.center_covariance * along_axis)));
-  out.sigma_horizontal_m =
-      std::sqrt(std::max(0.0, pnp.center_covariance(0, 0) + pnp.center_covariance(1, 1)));
+  // Each the larger of the model's and the jackknife's (errors shared by a region of the image).
+  const Eigen::Matrix3d& model = pnp.center_covariance;
+  const Eigen::Matrix3d& jack = pnp.center_covariance_jackknife;
+  out.sigma_along_model_m = std::sqrt(std::max(0.0, along_axis.dot(model * along_axis)));
+  out.sigma_along_m = std::sqrt(std::max(
+      {0.0, along_axis.dot(model * along_axis), along_axis.dot(jack * along_axis)}));
+  out.sigma_horizontal_m = std::sqrt(
+      std::max({0.0, model(0, 0) + model(1, 1), jack(0, 0) + jack(1, 1)}));
   out.pose_covariance = pnp.pose_covariance;
   out.status = RefineStatus::kOk;
   return out;

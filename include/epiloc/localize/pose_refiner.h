@@ -67,10 +67,13 @@ struct PoseRefinement {
   int num_correspondences = 0;
   int num_inliers = 0;
   double rmse_px = 0.0;
-  // Standard deviations of the camera centre (PnP covariance; when ok): along the route and
-  // horizontally (the root of the horizontal covariance's trace), metres.
+  // Standard deviations of the camera centre (when ok): along the route and horizontally (the
+  // root of the horizontal covariance's trace), metres; each the larger of the PnP model
+  // covariance's and the jackknife's (PnpResult::center_covariance_jackknife) ...
   double sigma_along_m = 0.0;
   double sigma_horizontal_m = 0.0;
+  // ... and along the route from the model covariance alone (independent pixel errors).
+  double sigma_along_model_m = 0.0;
   // The pose's covariance (PnpResult::pose_covariance: rotation of cam_from_enu, camera centre).
   Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();
 };
