@@ -40,9 +40,9 @@ def main():
                 dict(run=int(run), frames=int(frames), fps=float(fps), mb=int(rss_kb) / 1024.0,
                      summary=summary))
     header = ("| scenario | frames | localized | lost | online mean | online max | pnp mean | "
-              "pnp max | within 0.5 m | frames/s | peak MB | within 2 sigma |")
+              "pnp max | within 0.5 m | frames/s | peak MB | within 2 sigma | pnp horizontal within 2 sigma |")
     print(header)
-    print("|" + "---|" * 12)
+    print("|" + "---|" * 13)
     worst = dict(online=(-1.0, ""), pnp=(-1.0, ""), fps=(float("inf"), ""))
     for name, rs in scenarios.items():
         frames = max(r["frames"] for r in rs)
@@ -50,12 +50,16 @@ def main():
         online_mean = online_max = pnp_mean = pnp_max = None
         within = None
         calibration = None  # worst share of frames within 2 sigma, online and pnp along-track
+        horizontal = None  # worst share of pnp frames within 2 sigma_horizontal_m
         for r in rs:
             for name_m in ("online", "pnp"):
                 c = method(r["summary"], name_m).get("calibration", {})
                 if c.get("along_frames_with_sigma", 0) > 0:
                     share = c["along_within_2_sigma"]
                     calibration = share if calibration is None else min(calibration, share)
+                if name_m == "pnp" and c.get("horizontal_frames_with_sigma", 0) > 0:
+                    share = c["horizontal_within_2_sigma"]
+                    horizontal = share if horizontal is None else min(horizontal, share)
             online = along(r["summary"], "online")
             counts = method(r["summary"], "online").get("counts", {})
             ok = counts.get("ok", 0)
@@ -99,7 +103,8 @@ def main():
         print(f"| {name}{runs_note} | {frames} | {localized_cell} | {lost} | {m(online_mean)} | "
               f"{m(online_max)} | {m(pnp_mean)} | {m(pnp_max)} | "
               f"{'-' if within is None else f'{100 * within:.1f} %'} | {fps:.1f} | {mb:.0f} | "
-              f"{'-' if calibration is None else f'{100 * calibration:.1f} %'} |")
+              f"{'-' if calibration is None else f'{100 * calibration:.1f} %'} | "
+              f"{'-' if horizontal is None else f'{100 * horizontal:.1f} %'} |")
     print(f"worst: online max {worst['online'][0]:.3f} m ({worst['online'][1]}), "
           f"pnp max {worst['pnp'][0]:.3f} m ({worst['pnp'][1]}), "
           f"slowest {worst['fps'][0]:.1f} frames/s ({worst['fps'][1]})")
