@@ -82,7 +82,12 @@ void Jackknife(std::vector<InlierTerms> terms,
       b -= terms[j].jacobian.transpose() * terms[j].residual;
     }
     const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(h);
-    if (!lu.isInvertible()) return;  // the other bands alone do not fix the pose
+    if (!lu.isInvertible()) {
+      // The other bands alone do not fix the pose: it rests on one region of the image.
+      result->center_covariance_jackknife = Eigen::Matrix3d::Identity() * 1e6;
+      result->jackknife_groups = groups;
+      return;
+    }
     shifts.push_back(lu.solve(b).tail<3>());
   }
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
