@@ -29,6 +29,25 @@ std::string TempName(const std::string& path) {
       .string();
 }
 
+// True if `path` exists (links followed) and is neither a regular file nor a folder: a device
+// such as /dev/null or /dev/full, a FIFO, a socket. Such an output is written in place: a
+// temporary file renamed over it would replace the device node itself (as root) instead of
+// writing to it.
+bool IsSpecialFile(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  return !ec && fs::exists(status) && !fs::is_regular_file(status) && !fs::is_directory(status);
+}
+
+// Where an atomic write of `path` renames its file to: the file a symbolic link points to (the
+// link stays a link), else `path`.
+std::string RenameTarget(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_symlink(fs::symlink_status(path, ec))) return path;
+  const fs::path target = fs::canonical(path, ec);
+  return ec ? path : target.string();
+}
+
 fs::path Resolved(const std::string& path) {
   std::error_code ec;
   return fs::weakly_canonical(fs::absolute(path, ec), ec).lexically_normal();
@@ -61,6 +80,12 @@ bool SameFile(const std::string& a, const std::string& b) {
 void CheckWritable(const std::string& path, const std::string& option) {
   std::error_code ec;
   if (fs::is_directory(path, ec)) Throw("{} {}: is a folder, expected a file name", option, path);
+  if (IsSpecialFile(path)) {
+    if (::access(path.c_str(), W_OK) != 0) {
+      Throw("{} {}: cannot write ({})", option, path, std::strerror(errno));
+    }
+    return;  // written in place (AtomicFile)
+  }
   const fs::path folder = FolderOf(path);
   if (!fs::is_directory(folder, ec)) {
     Throw("{} {}: folder {} does not exist", option, path, folder.string());
@@ -103,14 +128,25 @@ void CheckOutputs(const std::vector<NamedPath>& outputs, const std::vector<Named
   }
 }
 
-AtomicFile::AtomicFile(const std::string& path) : path_(path), temp_path_(TempName(path)) {}
+AtomicFile::AtomicFile(const std::string& path) : path_(path) {
+  if (IsSpecialFile(path)) {
+    in_place_ = true;
+    temp_path_ = path;
+  } else {
+    temp_path_ = TempName(RenameTarget(path));
+  }
+}
 
 AtomicFile::~AtomicFile() { Discard(); }
 
 void AtomicFile::Commit() {
   if (done_) return;
+  if (in_place_) {
+    done_ = true;
+    return;
+  }
   std::error_code ec;
-  fs::rename(temp_path_, path_, ec);
+  fs::rename(temp_path_, RenameTarget(path_), ec);
   if (ec) {
     Discard();
     Throw("{}: cannot write ({})", path_, ec.message());
@@ -119,7 +155,10 @@ void AtomicFile::Commit() {
 }
 
 void AtomicFile::Discard() {
-  if (done_) return;
+  if (done_ || in_place_) {
+    done_ = true;
+    return;
+  }
   std::error_code ec;
   fs::remove(temp_path_, ec);
   done_ = true;
