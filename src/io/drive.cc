@@ -320,6 +320,27 @@ std::vector<std::string> DriveInputPaths(const std::string& dir) {
       for (const Json& element : *node) stack.push_back(&element);
     }
   }
+  // The files the drive's CSVs name: the images of a frames CSV, the scans of a LiDAR CSV (an
+  // output must not overwrite a frame's image either). A malformed CSV ends the list: the
+  // loader reports it.
+  const auto add_column = [&](const char* section, const char* column) {
+    if (!json.is_object() || !json.contains(section) || !json.at(section).is_object()) return;
+    const Json& entry = json.at(section);
+    if (!entry.contains("csv") || !entry.at("csv").is_string()) return;
+    try {
+      CsvReader csv(ResolvePath(dir, entry.at("csv").get<std::string>()));
+      if (!csv.HasColumn(column)) return;
+      while (csv.Next()) {
+        if (csv.Get(column).empty()) continue;
+        const std::string path = ResolvePath(dir, csv.Get(column));
+        std::error_code error;
+        if (std::filesystem::exists(path, error)) paths.push_back(path);
+      }
+    } catch (const Error&) {
+    }
+  };
+  add_column("frames", "image");
+  add_column("lidar", "path");
   return paths;
 }
 
