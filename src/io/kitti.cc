@@ -30,7 +30,7 @@ class CalibFile {
     std::ifstream in(path);
     if (!in) Throw("{}: cannot open calibration file", path);
     std::string line;
-    while (std::getline(in, line)) {
+    while (ReadLine(in, line, path, 0)) {
       const size_t colon = line.find(':');
       if (colon == std::string::npos) continue;
       std::istringstream values(line.substr(colon + 1));
