@@ -1,5 +1,6 @@
 #include "epiloc/core/output_file.h"
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -15,6 +16,52 @@ namespace epiloc {
 namespace {
 
 namespace fs = std::filesystem;
+
+// The temporary files of the AtomicFiles alive now, for the signal handler: a run stopped by
+// SIGINT, SIGTERM or SIGHUP (Ctrl-C, kill, a closed terminal) removes them before it dies
+// instead of leaving ".out.csv.tmp-<pid>-<n>.csv" files beside its outputs.
+constexpr int kMaxLiveTemps = 64;
+std::atomic<const char*> g_live_temps[kMaxLiveTemps];
+
+extern "C" void RemoveTempsAndDie(int signal_number) {
+  for (std::atomic<const char*>& slot : g_live_temps) {
+    const char* path = slot.load();
+    if (path != nullptr) ::unlink(path);  // async-signal-safe
+  }
+  ::signal(signal_number, SIG_DFL);
+  ::raise(signal_number);
+}
+
+void InstallSignalHandlers() {
+  static std::atomic<bool> installed{false};
+  if (installed.exchange(true)) return;
+  for (const int signal_number : {SIGINT, SIGTERM, SIGHUP}) {
+    struct sigaction old = {};
+    if (::sigaction(signal_number, nullptr, &old) != 0) continue;
+    // An ignored signal (nohup, a background job) stays ignored; another handler stays.
+    if ((old.sa_flags & SA_SIGINFO) != 0 || old.sa_handler != SIG_DFL) continue;
+    struct sigaction action = {};
+    action.sa_handler = RemoveTempsAndDie;
+    sigemptyset(&action.sa_mask);
+    ::sigaction(signal_number, &action, nullptr);
+  }
+}
+
+void RegisterTemp(const char* path) {
+  InstallSignalHandlers();
+  for (std::atomic<const char*>& slot : g_live_temps) {
+    const char* expected = nullptr;
+    if (slot.compare_exchange_strong(expected, path)) return;
+  }
+  // More than kMaxLiveTemps open outputs: this one is not removed on a signal.
+}
+
+void UnregisterTemp(const char* path) {
+  for (std::atomic<const char*>& slot : g_live_temps) {
+    const char* expected = path;
+    if (slot.compare_exchange_strong(expected, nullptr)) return;
+  }
+}
 
 fs::path FolderOf(const std::string& path) {
   const fs::path parent = fs::path(path).parent_path();
@@ -134,6 +181,7 @@ AtomicFile::AtomicFile(const std::string& path) : path_(path) {
     temp_path_ = path;
   } else {
     temp_path_ = TempName(RenameTarget(path));
+    RegisterTemp(temp_path_.c_str());
   }
 }
 
@@ -151,6 +199,7 @@ void AtomicFile::Commit() {
     Discard();
     Throw("{}: cannot write ({})", path_, ec.message());
   }
+  UnregisterTemp(temp_path_.c_str());
   done_ = true;
 }
 
@@ -161,6 +210,7 @@ void AtomicFile::Discard() {
   }
   std::error_code ec;
   fs::remove(temp_path_, ec);
+  UnregisterTemp(temp_path_.c_str());
   done_ = true;
 }
 

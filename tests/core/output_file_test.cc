@@ -4,9 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -144,6 +146,29 @@ TEST(AtomicFile, ALinkStaysALink) {
   }
   EXPECT_TRUE(fs::is_symlink(fs::symlink_status(dir / "link.csv")));
   EXPECT_EQ(ReadAll(dir / "real/out.csv"), "new");
+}
+
+// Issue 18 (unseen inputs): `localize` killed by SIGTERM or Ctrl-C left ".r.csv.tmp-<pid>-<n>.csv"
+// beside its outputs.
+TEST(AtomicFileDeathTest, ASignalRemovesTheTemporaryFiles) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  TempDir dir;
+  for (const int signal_number : {SIGTERM, SIGINT}) {
+    EXPECT_EXIT(
+        {
+          CsvWriter csv(dir / "r.csv", {"a"});
+          csv.WriteRow({"1"});
+          csv.Flush();
+          AtomicOfstream nmea(dir / "r.nmea");
+          nmea << "$GPGGA";
+          nmea.stream().flush();
+          if (NumEntries(dir.str()) != 2) std::_Exit(3);  // both temporaries exist
+          std::raise(signal_number);
+          std::_Exit(4);
+        },
+        ::testing::KilledBySignal(signal_number), "");
+    EXPECT_EQ(NumEntries(dir.str()), 0u);
+  }
 }
 
 TEST(CsvWriterAtomic, AFailedRunLeavesNoPartialFile) {

@@ -35,7 +35,9 @@ void CheckWritable(const std::string& path, const std::string& option);
 // so a reader never sees a partial file and a failure leaves the previous file (or none).
 // Destroyed without Commit(), the temporary file is removed. A symbolic link stays a link (the
 // file it points to is replaced). A device, FIFO or socket (/dev/null, /dev/full, a named pipe)
-// is written in place: temp_path() is `path` and Commit() renames nothing.
+// is written in place: temp_path() is `path` and Commit() renames nothing. SIGINT, SIGTERM and
+// SIGHUP (when not ignored or handled otherwise) remove the temporary files of the live
+// AtomicFiles before the process dies of the signal.
 class AtomicFile {
  public:
   explicit AtomicFile(const std::string& path);
