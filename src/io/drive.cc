@@ -213,17 +213,38 @@ struct Manifest {
   double time_offset_s = 0.0;
 };
 
+// A drive.json-style file parsed, with a key given twice in one object refused: nlohmann keeps
+// the last one without a word, so `"fx": 600, "fx": 700` calibrated with 700.
+Json ParseJsonFile(std::istream& in, const std::string& file) {
+  std::vector<std::set<std::string>> keys;  // the keys seen in each open object
+  const Json::parser_callback_t callback = [&](int /*depth*/, Json::parse_event_t event,
+                                               Json& parsed) {
+    if (event == Json::parse_event_t::object_start) {
+      keys.emplace_back();
+    } else if (event == Json::parse_event_t::object_end) {
+      if (!keys.empty()) keys.pop_back();
+    } else if (event == Json::parse_event_t::key && !keys.empty() && parsed.is_string()) {
+      const std::string& key = parsed.get_ref<const std::string&>();
+      if (!keys.back().insert(key).second) {
+        Throw("{}: key '{}' is given twice in one object", file, Printable(key));
+      }
+    }
+    return true;
+  };
+  try {
+    return Json::parse(in, callback);
+  } catch (const Json::exception& e) {
+    Throw("{}: malformed JSON: {}", file, e.what());
+  }
+}
+
 Manifest ReadManifest(const std::string& dir) {
   Manifest m;
   m.file = (std::filesystem::path(dir) / "drive.json").string();
   const std::string& file = m.file;
   std::ifstream in(file);
   if (!in) Throw("{}: cannot open the drive manifest", file);
-  try {
-    m.json = Json::parse(in);
-  } catch (const Json::exception& e) {
-    Throw("{}: malformed JSON: {}", file, e.what());
-  }
+  m.json = ParseJsonFile(in, file);
   const JsonObject manifest(m.json, file, "", kManifestKeys);
   const int64_t version = manifest.Integer("epiloc_drive");
   if (version != kDriveFormatVersion) {
@@ -275,12 +296,7 @@ Drive LoadDrive(const std::string& dir) {
 Camera ReadCalibrationFile(const std::string& path) {
   std::ifstream in(path);
   if (!in) Throw("{}: cannot open the calibration file", path);
-  Json json;
-  try {
-    json = Json::parse(in);
-  } catch (const Json::exception& e) {
-    Throw("{}: malformed JSON: {}", path, e.what());
-  }
+  const Json json = ParseJsonFile(in, path);
   if (!json.is_object()) Throw("{}: the calibration file must hold a JSON object", path);
   Json camera_only = Json::object();
   if (json.contains("camera")) camera_only["camera"] = json.at("camera");
