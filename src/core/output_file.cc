@@ -176,6 +176,9 @@ void CheckOutputs(const std::vector<NamedPath>& outputs, const std::vector<Named
 }
 
 AtomicFile::AtomicFile(const std::string& path) : path_(path) {
+  // CSV and NMEA writers stream "-" to standard output themselves; any other writer would make a
+  // file named "-" (export --out - did, and printed its summary on stdout as if it had streamed).
+  if (path == "-") Throw("--out -: this output cannot go to standard output; give a file name");
   if (IsSpecialFile(path)) {
     in_place_ = true;
     temp_path_ = path;

@@ -134,6 +134,17 @@ TEST(AtomicFile, AFailedWriteToADeviceIsAnError) {
   EXPECT_TRUE(fs::is_character_file(fs::symlink_status("/dev/full")));
 }
 
+// Issue 18 (unseen inputs): `export --out -` wrote a file named "-" (the checks had skipped "-"
+// as standard output) and exited 0.
+TEST(AtomicFile, StandardOutputIsNotAFileName) {
+  TempDir dir;
+  const fs::path previous = fs::current_path();
+  fs::current_path(dir.str());
+  ExpectError([] { AtomicOfstream out("-"); }, {"-", "standard output"});
+  EXPECT_FALSE(fs::exists(dir / "-"));
+  fs::current_path(previous);
+}
+
 TEST(AtomicFile, ALinkStaysALink) {
   TempDir dir;
   fs::create_directories(dir / "real");
