@@ -105,6 +105,23 @@ TEST_F(OutputPaths, TheImagesAndScansADriveNamesAreInputs) {
                 dir_ / "drive2/scans/0.bin", {"--out", "input --drive", "0.bin"});
 }
 
+// Issue 18 (unseen inputs): outputs a command writes besides --out were not checked: `vo --points
+// <drive>/frames.csv` overwrote the drive's frames CSV; build-map's origin sidecar <out>.json
+// could overwrite an input named so.
+TEST_F(OutputPaths, SecondaryOutputsAreCheckedToo) {
+  const std::string drive = dir_ / "drive";
+  ExpectRefused(fmt::format("vo --drive {} --out {} --points {}", drive, dir_ / "vo.tum",
+                            dir_ / "drive/frames.csv"),
+                dir_ / "drive/frames.csv", {"--points", "input --drive", "frames.csv"});
+  EXPECT_FALSE(fs::exists(dir_ / "vo.tum"));
+  WriteText(dir_ / "map.ply.json", "{}");
+  fs::rename(dir_ / "drive/drive.json", dir_ / "drive/manifest.json");
+  fs::create_symlink("../map.ply.json", dir_ / "drive/drive.json");
+  WriteText(dir_ / "map.ply.json", ReadAll(dir_ / "drive/manifest.json"));
+  ExpectRefused(fmt::format("build-map --drive {} --out {}", drive, dir_ / "map.ply"),
+                dir_ / "map.ply.json", {"--out (sidecar)", "map.ply.json", "input --drive"});
+}
+
 TEST_F(OutputPaths, ExportEvaluateGeorefBuildDbRefuseTheirInputs) {
   const std::string result = dir_ / "result.csv";
   ExpectRefused(fmt::format("export --result {0} --format geojson --out {0}", result), result,
