@@ -2,6 +2,7 @@
 // `epiloc <command> [options]`; `epiloc help` lists the commands.
 #include <malloc.h>
 
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -40,6 +41,12 @@ std::string OneLine(const std::string& message) {
     }
   }
   while (!line.empty() && line.back() == ' ') line.pop_back();
+  // A value quoted whole (a 20 MB field) would make a 20 MB line: keep its start and its end,
+  // where the file name and the verdict are.
+  constexpr size_t kMaxBytes = 2000;
+  if (line.size() > kMaxBytes) {
+    line = line.substr(0, kMaxBytes - 300) + " [...] " + line.substr(line.size() - 300);
+  }
   return line;
 }
 
@@ -76,7 +83,15 @@ int main(int argc, char** argv) {
   for (const epiloc::Command& command : epiloc::Commands()) {
     if (command.name != name) continue;
     try {
-      return command.run(argc - 1, argv + 1);
+      const int code = command.run(argc - 1, argv + 1);
+      // Data printed on standard output (info's summary, a table) that could not be written is a
+      // failure: `epiloc info > /dev/full` exited 0.
+      if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
+        std::fprintf(stderr, "epiloc %s: error: standard output: write failed (%s)\n",
+                     name.c_str(), std::strerror(errno));
+        return epiloc::kExitError;
+      }
+      return code;
     } catch (const epiloc::Error& e) {
       std::fprintf(stderr, "epiloc %s: error: %s\n", name.c_str(), OneLine(e.what()).c_str());
     } catch (const std::exception& e) {

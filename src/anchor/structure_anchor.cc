@@ -16,6 +16,7 @@
 #include "anchor_internal.h"
 #include "epiloc/cloud/tiled_cloud.h"
 #include "epiloc/cloud/voxel.h"
+#include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
 #include "epiloc/core/parallel.h"
 
@@ -35,7 +36,7 @@ std::vector<SegmentRange> ReadSegmentComments(const std::string& path) {
   std::ifstream in(path);
   std::vector<SegmentRange> segments;
   std::string line;
-  while (std::getline(in, line)) {
+  while (ReadLine(in, line, path, 0)) {
     if (line.empty() || line[0] != '#') continue;
     int id = 0;
     long long first = 0, last = 0;

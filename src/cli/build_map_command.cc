@@ -60,7 +60,9 @@ int RunBuildMap(int argc, char** argv) {
   app.add_option("--spin", spin, "Spin direction seen from above: cw | ccw")->capture_default_str();
   app.add_option("--threads", options.num_threads, "Worker threads")->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
-  CheckCommandOutputs({{"--out", out_path}}, {{"--drive", drive_dir}, {"--db", db_path}});
+  // The origin sidecar <out>.json is written too: it must not be an input either.
+  CheckCommandOutputs({{"--out", out_path}, {"--out (sidecar)", SidecarPath(out_path)}},
+                      {{"--drive", drive_dir}, {"--db", db_path}});
   if (!db_path.empty() && !origin_text.empty()) Throw("give --db or --origin, not both");
   options.colour.mode = ParseColourMode(colour_mode);
   if (spin != "cw" && spin != "ccw") Throw("--spin '{}': expected cw or ccw", spin);

@@ -94,7 +94,7 @@ void CheckConfigFile(const std::string& path, const std::vector<std::string>& na
   std::string text;
   std::set<std::string> seen;
   int64_t line = 0;
-  while (std::getline(in, text)) {
+  while (ReadLine(in, text, path, line + 1)) {
     ++line;
     if (line == 1 && text.rfind("\xEF\xBB\xBF", 0) == 0) text = text.substr(3);
     const std::string trimmed = Trim(text);

@@ -47,9 +47,12 @@ int RunVo(int argc, char** argv) {
   app.add_option("--threads", options.num_threads, "Bundle-adjustment threads")
       ->capture_default_str();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
-  CheckCommandOutputs({{"--out", out_path}}, {{"--drive", drive_dir}});
-
   options.keep_points = points_path != "none";
+  if (options.keep_points && points_path.empty()) points_path = VoPointsPath(out_path);
+  // --points is an output too: `--points <drive>/frames.csv` overwrote the drive's frames CSV.
+  CheckCommandOutputs({{"--out", out_path}, {"--points", options.keep_points ? points_path : ""}},
+                      {{"--drive", drive_dir}});
+
   options.Check();
   const Drive drive = LoadDrive(drive_dir);
   Progress progress("vo", static_cast<int64_t>(drive.frames.size()));
@@ -57,7 +60,6 @@ int RunVo(int argc, char** argv) {
   progress.Finish();
   WriteVoTrajectory(result, out_path, drive.name, drive.dir);
   if (options.keep_points) {
-    if (points_path.empty()) points_path = VoPointsPath(out_path);
     WriteVoPoints(result.points, points_path);
     std::printf("%s: %zu map points\n", points_path.c_str(), result.points.size());
   }

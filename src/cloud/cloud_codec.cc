@@ -8,6 +8,7 @@
 #include <filesystem>
 
 #include "cloud_io_internal.h"
+#include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
@@ -185,7 +186,7 @@ void RecordLayout::SetStride(size_t record_bytes) {
 }
 
 bool LineReader::Next() {
-  if (!std::getline(*in_, line_)) return false;
+  if (!ReadLine(*in_, line_, path_, line_number_ + 1)) return false;
   ++line_number_;
   if (!line_.empty() && line_.back() == '\r') line_.pop_back();
   return true;

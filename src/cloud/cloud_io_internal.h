@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "epiloc/cloud/cloud_io.h"
@@ -77,7 +78,8 @@ struct RecordLayout {
 // Reads a text file line by line, counting lines for messages; '\r' before '\n' is removed.
 class LineReader {
  public:
-  LineReader(std::ifstream* in, int64_t first_line) : in_(in), line_number_(first_line - 1) {}
+  LineReader(std::ifstream* in, int64_t first_line, std::string path)
+      : in_(in), line_number_(first_line - 1), path_(std::move(path)) {}
   // Next line into line(); false at the end of the file.
   bool Next();
   const std::string& line() const { return line_; }
@@ -87,6 +89,7 @@ class LineReader {
   std::ifstream* in_;
   std::string line_;
   int64_t line_number_;
+  std::string path_;  // for messages
 };
 
 // Splits at white space (and at ',' and ';' when `commas`) into `tokens` (views into `line`).

@@ -81,7 +81,7 @@ bool LzfDecompress(const uint8_t* in, size_t in_size, uint8_t* out, size_t out_s
 class PcdSource : public PointSource {
  public:
   PcdSource(const std::string& path, const CloudReadOptions& options)
-      : PointSource(path, options), reader_(&in_, 1) {
+      : PointSource(path, options), reader_(&in_, 1, path) {
     OpenForReading(path, &in_);
     const int first = in_.peek();
     if (first != '#' && first != 'V' && first != 'F') {

@@ -73,7 +73,7 @@ PlyFileHeader ParsePlyHeader(const std::string& path, std::ifstream* in) {
   }
   in->clear();
   in->seekg(0);
-  LineReader reader(in, 1);
+  LineReader reader(in, 1, path);
   reader.Next();
   PlyFileHeader header;
   bool have_format = false;
@@ -142,7 +142,7 @@ PlyFileHeader ParsePlyHeader(const std::string& path, std::ifstream* in) {
 class PlySource : public PointSource {
  public:
   PlySource(const std::string& path, const CloudReadOptions& options)
-      : PointSource(path, options), reader_(&in_, 1) {
+      : PointSource(path, options), reader_(&in_, 1, path) {
     OpenForReading(path, &in_);
     header_ = ParsePlyHeader(path, &in_);
     size_t vertex = header_.elements.size();
@@ -162,7 +162,7 @@ class PlySource : public PointSource {
                                                                             : "binary_big_endian";
     info_.num_points = vertex_.count;
     BuildLayout();
-    reader_ = LineReader(&in_, header_.num_lines + 1);
+    reader_ = LineReader(&in_, header_.num_lines + 1, path);
     for (size_t e = 0; e < vertex; ++e) SkipElement(header_.elements[e]);
     if (header_.encoding == PlyEncoding::kAscii) {
       SetTextReserveHint(vertex_.count);

@@ -70,7 +70,7 @@ bool IsComment(const std::string& line) {
 class XyzSource : public PointSource {
  public:
   XyzSource(const std::string& path, const CloudReadOptions& options)
-      : PointSource(path, options), reader_(&in_, 1) {
+      : PointSource(path, options), reader_(&in_, 1, path) {
     OpenForReading(path, &in_);
     info_.format = CloudFormat::kXyz;
     info_.encoding = "text";

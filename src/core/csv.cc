@@ -103,6 +103,10 @@ bool CsvReader::TakeLine(const std::string& raw) {
       line_ == 1 && raw.compare(0, kBom.size(), kBom) == 0 ? raw.substr(kBom.size()) : raw;
   const std::string trimmed = Trim(text);
   if (trimmed.empty() || trimmed[0] == '#') return false;
+  // A path is cut at a NUL byte by every file API: "images/1.png\0junk" read images/1.png.
+  if (text.find('\0') != std::string::npos) {
+    Throw("{}: a NUL byte in the line (a binary file?)", where());
+  }
   fields_ = SplitCsvLine(text);
   if (!header_.empty() && fields_.size() != header_.size()) {
     Throw("{}: {} fields, the header has {}", where(), fields_.size(), header_.size());
@@ -110,9 +114,29 @@ bool CsvReader::TakeLine(const std::string& raw) {
   return true;
 }
 
+bool ReadLine(std::istream& in, std::string& line, const std::string& path, int64_t line_number) {
+  line.clear();
+  const std::istream::sentry sentry(in, true);
+  if (!sentry) return false;
+  std::streambuf* buffer = in.rdbuf();
+  for (;;) {
+    const int c = buffer->sbumpc();
+    if (c == std::char_traits<char>::eof()) {
+      in.setstate(line.empty() ? std::ios::eofbit | std::ios::failbit : std::ios::eofbit);
+      return !line.empty();
+    }
+    if (c == '\n') return true;
+    if (line.size() >= kMaxLineBytes) {
+      Throw("{}: line longer than {} bytes (not a text file?)", Where(path, line_number),
+            kMaxLineBytes);
+    }
+    line.push_back(static_cast<char>(c));
+  }
+}
+
 bool CsvReader::Next() {
   std::string text;
-  while (std::getline(in_, text)) {
+  while (ReadLine(in_, text, path_, line_ + 1)) {
     ++line_;
     if (TakeLine(text)) return true;
   }
@@ -125,7 +149,7 @@ bool CsvReader::NextAppended() {
     in_.clear();  // an earlier end of file: the file may have grown since
     const std::streampos start = in_.tellg();
     std::string text;
-    if (!std::getline(in_, text) || in_.eof()) {
+    if (!ReadLine(in_, text, path_, line_ + 1) || in_.eof()) {
       // Nothing, or a line still being written: read it again once it is complete.
       if (in_.bad()) Throw("{}: read error", path_);
       in_.clear();

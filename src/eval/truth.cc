@@ -44,7 +44,7 @@ std::string FirstDataLine(const std::string& path) {
   std::ifstream in(path);
   if (!in) Throw("{}: cannot open ground truth", path);
   std::string line;
-  while (std::getline(in, line)) {
+  while (ReadLine(in, line, path, 0)) {
     const std::string trimmed = Trim(line);
     if (!trimmed.empty() && trimmed[0] != '#') return trimmed;
   }
@@ -144,7 +144,7 @@ PositionTrack ReadNdtTruth(const std::string& path, const TruthOptions& options)
     std::ifstream in(path);
     std::string line;
     int64_t line_number = 0;
-    while (std::getline(in, line)) {
+    while (ReadLine(in, line, path, line_number + 1)) {
       ++line_number;
       const std::string trimmed = Trim(line);
       if (trimmed.empty() || trimmed[0] == '#') continue;

@@ -22,7 +22,7 @@ size_t FirstLineTokens(const std::string& path) {
   std::ifstream in(path);
   if (!in) Throw("{}: cannot open trajectory file", path);
   std::string line;
-  while (std::getline(in, line)) {
+  while (ReadLine(in, line, path, 0)) {
     const std::string trimmed = Trim(line);
     if (trimmed.empty() || trimmed[0] == '#') continue;
     std::istringstream tokens(trimmed);
@@ -124,7 +124,7 @@ std::string TrajectoryDriveDir(const std::string& path) {
   if (!in) Throw("{}: cannot open trajectory file", path);
   const std::string key = "# drive_dir ";
   std::string line;
-  while (std::getline(in, line)) {
+  while (ReadLine(in, line, path, 0)) {
     if (line.rfind(key, 0) == 0) return Trim(line.substr(key.size()));
     if (!line.empty() && line[0] != '#') break;  // comments come first
   }

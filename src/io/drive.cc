@@ -213,17 +213,38 @@ struct Manifest {
   double time_offset_s = 0.0;
 };
 
+// A drive.json-style file parsed, with a key given twice in one object refused: nlohmann keeps
+// the last one without a word, so `"fx": 600, "fx": 700` calibrated with 700.
+Json ParseJsonFile(std::istream& in, const std::string& file) {
+  std::vector<std::set<std::string>> keys;  // the keys seen in each open object
+  const Json::parser_callback_t callback = [&](int /*depth*/, Json::parse_event_t event,
+                                               Json& parsed) {
+    if (event == Json::parse_event_t::object_start) {
+      keys.emplace_back();
+    } else if (event == Json::parse_event_t::object_end) {
+      if (!keys.empty()) keys.pop_back();
+    } else if (event == Json::parse_event_t::key && !keys.empty() && parsed.is_string()) {
+      const std::string& key = parsed.get_ref<const std::string&>();
+      if (!keys.back().insert(key).second) {
+        Throw("{}: key '{}' is given twice in one object", file, Printable(key));
+      }
+    }
+    return true;
+  };
+  try {
+    return Json::parse(in, callback);
+  } catch (const Json::exception& e) {
+    Throw("{}: malformed JSON: {}", file, e.what());
+  }
+}
+
 Manifest ReadManifest(const std::string& dir) {
   Manifest m;
   m.file = (std::filesystem::path(dir) / "drive.json").string();
   const std::string& file = m.file;
   std::ifstream in(file);
   if (!in) Throw("{}: cannot open the drive manifest", file);
-  try {
-    m.json = Json::parse(in);
-  } catch (const Json::exception& e) {
-    Throw("{}: malformed JSON: {}", file, e.what());
-  }
+  m.json = ParseJsonFile(in, file);
   const JsonObject manifest(m.json, file, "", kManifestKeys);
   const int64_t version = manifest.Integer("epiloc_drive");
   if (version != kDriveFormatVersion) {
@@ -275,12 +296,7 @@ Drive LoadDrive(const std::string& dir) {
 Camera ReadCalibrationFile(const std::string& path) {
   std::ifstream in(path);
   if (!in) Throw("{}: cannot open the calibration file", path);
-  Json json;
-  try {
-    json = Json::parse(in);
-  } catch (const Json::exception& e) {
-    Throw("{}: malformed JSON: {}", path, e.what());
-  }
+  const Json json = ParseJsonFile(in, path);
   if (!json.is_object()) Throw("{}: the calibration file must hold a JSON object", path);
   Json camera_only = Json::object();
   if (json.contains("camera")) camera_only["camera"] = json.at("camera");
@@ -320,6 +336,27 @@ std::vector<std::string> DriveInputPaths(const std::string& dir) {
       for (const Json& element : *node) stack.push_back(&element);
     }
   }
+  // The files the drive's CSVs name: the images of a frames CSV, the scans of a LiDAR CSV (an
+  // output must not overwrite a frame's image either). A malformed CSV ends the list: the
+  // loader reports it.
+  const auto add_column = [&](const char* section, const char* column) {
+    if (!json.is_object() || !json.contains(section) || !json.at(section).is_object()) return;
+    const Json& entry = json.at(section);
+    if (!entry.contains("csv") || !entry.at("csv").is_string()) return;
+    try {
+      CsvReader csv(ResolvePath(dir, entry.at("csv").get<std::string>()));
+      if (!csv.HasColumn(column)) return;
+      while (csv.Next()) {
+        if (csv.Get(column).empty()) continue;
+        const std::string path = ResolvePath(dir, csv.Get(column));
+        std::error_code error;
+        if (std::filesystem::exists(path, error)) paths.push_back(path);
+      }
+    } catch (const Error&) {
+    }
+  };
+  add_column("frames", "image");
+  add_column("lidar", "path");
   return paths;
 }
 

@@ -97,9 +97,17 @@ cv::Mat DecodeImageFile(const std::string& path,
   // upsampling and colour conversion, half the decoding time of a colour 1080p frame.
   const bool jpeg = data.size() >= 2 && static_cast<uint8_t>(data[0]) == 0xFF &&
                     static_cast<uint8_t>(data[1]) == 0xD8;
-  cv::Mat image = cv::imdecode(
-      cv::Mat(1, static_cast<int>(std::min<size_t>(data.size(), INT32_MAX)), CV_8U, data.data()),
-      jpeg && !colour ? cv::IMREAD_GRAYSCALE : cv::IMREAD_UNCHANGED);
+  cv::Mat image;
+  try {
+    image = cv::imdecode(
+        cv::Mat(1, static_cast<int>(std::min<size_t>(data.size(), INT32_MAX)), CV_8U, data.data()),
+        jpeg && !colour ? cv::IMREAD_GRAYSCALE : cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    // OpenCV refuses a header declaring more than CV_IO_MAX_IMAGE_PIXELS pixels (a 60000x60000
+    // PNG of 74 bytes) with an exception whose text names no file: report it as this file's.
+    *problem = fmt::format("cannot decode ({})", Printable(e.err));
+    return cv::Mat();
+  }
   if (image.empty()) {
     *problem = "cannot decode (not a PNG or JPEG, or corrupt)";
     return cv::Mat();

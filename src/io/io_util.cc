@@ -120,7 +120,7 @@ std::vector<double> ReadTimestamps(const std::string& path) {
   std::string line;
   int64_t line_number = 0;
   int64_t first_blank = 0;
-  while (std::getline(in, line)) {
+  while (ReadLine(in, line, path, line_number + 1)) {
     ++line_number;
     const std::string text = Trim(line);
     if (text.empty()) {

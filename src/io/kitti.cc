@@ -30,7 +30,7 @@ class CalibFile {
     std::ifstream in(path);
     if (!in) Throw("{}: cannot open calibration file", path);
     std::string line;
-    while (std::getline(in, line)) {
+    while (ReadLine(in, line, path, 0)) {
       const size_t colon = line.find(':');
       if (colon == std::string::npos) continue;
       std::istringstream values(line.substr(colon + 1));
@@ -146,8 +146,12 @@ void KittiImportOptions::Check() const {
   EPILOC_CHECK(stop == -1 || stop > start, "KITTI import: stop {} must be -1 or > start {}", stop,
                start);
   EPILOC_CHECK(step >= 1, "KITTI import: step {} must be >= 1", step);
-  EPILOC_CHECK(std::isfinite(gps_noise_sigma_m) && gps_noise_sigma_m >= 0,
-               "KITTI import: gps_noise_sigma_m {} must be >= 0", gps_noise_sigma_m);
+  // Beyond a kilometre the simulated positions leave the globe's valid range (1e308 wrote empty
+  // latitudes and an infinite altitude into gnss.csv, exit 0).
+  EPILOC_CHECK(std::isfinite(gps_noise_sigma_m) && gps_noise_sigma_m >= 0 &&
+                   gps_noise_sigma_m <= kMaxGpsNoiseSigmaM,
+               "KITTI import: gps_noise_sigma_m {} must be in [0, {}] m", gps_noise_sigma_m,
+               kMaxGpsNoiseSigmaM);
 }
 
 Eigen::Matrix3d EnuFromImu(double roll_rad, double pitch_rad, double yaw_rad) {

@@ -180,7 +180,7 @@ PositionTrack ReadNmea(const std::string& path, const std::string& date, NmeaSta
   NmeaParser parser(path, date);
   std::string line;
   int64_t line_number = 0;
-  while (std::getline(in, line)) parser.Feed(line, ++line_number, &track);
+  while (ReadLine(in, line, path, line_number + 1)) parser.Feed(line, ++line_number, &track);
   if (in.bad()) Throw("{}: read error", path);
   NmeaStats stats = parser.stats();
   stats.positions = static_cast<int64_t>(track.samples.size());

@@ -25,7 +25,7 @@ void ForEachNumericLine(const std::string& path, size_t count, const std::string
   std::string line;
   int64_t line_number = 0;
   std::vector<double> numbers;
-  while (std::getline(in, line)) {
+  while (ReadLine(in, line, path, line_number + 1)) {
     ++line_number;
     const std::string trimmed = Trim(line);
     if (trimmed.empty() || trimmed[0] == '#') continue;

@@ -177,6 +177,7 @@ void LocalizeOptions::Check() const {
   vfit.Check();
   refine.Check();
   EPILOC_CHECK(max_sigma_m > 0, "localize: max_sigma_m must be > 0");
+  EPILOC_CHECK(off_route_m > 0, "localize: off_route_m must be > 0, got {}", off_route_m);
   EPILOC_CHECK(route_end_margin_m >= 0, "localize: route_end_margin_m must be >= 0");
   EPILOC_CHECK(max_focal_ratio >= 0, "localize: max_focal_ratio must be >= 0");
   EPILOC_CHECK(std::isfinite(max_latency_s) && max_latency_s >= 0,
@@ -191,6 +192,16 @@ Geodetic OriginOf(const Database& db, const std::string& path) {
   const std::optional<Geodetic> origin = db.EnuOrigin();
   EPILOC_CHECK(origin.has_value(), "{}: the database has no frames (no ENU origin)", path);
   return *origin;
+}
+
+// The database's route polyline; a degenerate one is reported as the database's ("route: needs at
+// least two distinct positions" named no file).
+Route RouteOf(const Database& db, const std::string& path) {
+  try {
+    return Route(db.ReadRoute());
+  } catch (const Error& e) {
+    Throw("{}: {}", path, e.what());
+  }
 }
 
 // Appends one clause to a frame's note ("; "-separated).
@@ -220,7 +231,7 @@ Localizer::Impl::Impl(const std::string& path, const Camera& camera, const Local
       options(opts),
       db(path, Database::Mode::kReadOnly),
       enu(OriginOf(db, path)),
-      route(db.ReadRoute()),
+      route(RouteOf(db, path)),
       undistorter(camera, WorkingFocal(db, opts.max_focal_ratio)),
       filter(opts.filter) {
   options.Check();

@@ -86,10 +86,13 @@ std::string FormatDatabaseInfo(const DatabaseInfo& info) {
   text += fmt::format("drives          {}\n", info.drives.size());
   for (const DriveInfo& d : info.drives) {
     text += fmt::format(
-        "  {}: {} frames{} ({}x{}), s {:.2f}..{:.2f} m, positions from {}{}\n", d.name,
+        // Names and sources come from drive.json files: a line break or ESC [2J in one must not
+        // split the line or drive the terminal.
+        "  {}: {} frames{} ({}x{}), s {:.2f}..{:.2f} m, positions from {}{}\n",
+        Printable(d.name, d.name.size()),
         d.num_frames,
         d.num_frames_planned != d.num_frames ? fmt::format(" of {}", d.num_frames_planned) : "",
-        d.width, d.height, d.s_min_m, d.s_max_m, d.positions,
+        d.width, d.height, d.s_min_m, d.s_max_m, Printable(d.positions, d.positions.size()),
         d.complete ? "" : ", INCOMPLETE (re-run build-db to finish)");
   }
   return text;

@@ -1,5 +1,6 @@
 #include "epiloc/synth/drive_gen.h"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <exception>
@@ -70,6 +71,25 @@ struct DriveJob {
 void SynthOptions::Check() const {
   EPILOC_CHECK(std::isfinite(length_m) && length_m >= 30,
                "synth options: length_m = {} must be at least 30 m", length_m);
+  // Bounds that keep a typo from taking all memory and days (--length-m 1e9 ran without end,
+  // --query-speed-mps 1e-9 took 6.8 GB within a minute).
+  constexpr double kMaxLengthM = 5000;
+  constexpr double kMaxFramesPerDrive = 200000;
+  EPILOC_CHECK(length_m <= kMaxLengthM, "synth options: length_m = {} must be at most {} m",
+               length_m, kMaxLengthM);
+  for (const DriveOptions* drive : {&survey, &query}) {
+    double min_speed_mps = drive->speed_mps;
+    for (const SpeedSection& s : drive->sections) min_speed_mps = std::min(min_speed_mps, s.speed_mps);
+    double stopped_s = std::max(drive->end_stop_s, 0.0);
+    for (const StopEvent& s : drive->stops) stopped_s += std::max(s.duration_s, 0.0);
+    if (!(min_speed_mps > 0) || !(drive->frame_rate_hz > 0)) continue;  // DriveOptions::Check
+    const double frames = (length_m / min_speed_mps + stopped_s) * drive->frame_rate_hz;
+    EPILOC_CHECK(frames <= kMaxFramesPerDrive,
+                 "synth options: {}: about {:.3g} frames ({} m at {} m/s, {} Hz); at most {:.0f} "
+                 "are generated per drive",
+                 drive->name, frames, length_m, min_speed_mps, drive->frame_rate_hz,
+                 kMaxFramesPerDrive);
+  }
   ResolvedWorldOptions().Check();
   appearance.Check();
   survey.Check("synth options: survey");

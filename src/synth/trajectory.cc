@@ -34,8 +34,8 @@ Eigen::Quaterniond SmallRotation(double sigma_rad, Rng& rng) {
 }  // namespace
 
 void GnssOptions::Check(const std::string& where) const {
-  EPILOC_CHECK(sigma_m >= 0 && std::isfinite(sigma_m), "{}: gnss sigma_m must not be negative",
-               where);
+  EPILOC_CHECK(sigma_m >= 0 && sigma_m <= 1000, "{}: gnss sigma_m = {} must be in [0, 1000] m",
+               where, sigma_m);
   EPILOC_CHECK(up_factor >= 0, "{}: gnss up_factor must not be negative", where);
   EPILOC_CHECK(tau_s > 0, "{}: gnss tau_s must be positive", where);
   EPILOC_CHECK(bias_fraction >= 0 && bias_fraction <= 1, "{}: gnss bias_fraction must be in [0, 1]",

@@ -392,6 +392,42 @@ TEST_F(BuildDbErrors, IdenticalPositionsNameTheirFile) {
   EXPECT_THAT(result.stderr_text, HasSubstr((drive / "gnss.csv").string()));
 }
 
+// Issue 18 (unseen inputs): a database whose route polyline collapsed to one point (rows edited
+// or written by another tool) gave "route: needs at least two distinct positions" without the
+// database's name.
+TEST_F(BuildDbErrors, DegenerateRouteInTheDatabaseNamesIt) {
+  const fs::path db = root_ / "degenerate.sqlite";
+  fs::copy_file(db_, db);
+  sqlite3* handle = nullptr;
+  ASSERT_EQ(sqlite3_open(db.c_str(), &handle), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(handle, "UPDATE route_points SET e_m = 0, n_m = 0, u_m = 0", nullptr,
+                         nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(handle);
+  const RunResult result =
+      RunEpiloc(fmt::format("localize --db {} --drive {} --out {}", db.string(),
+                            (root_ / "good").string(), (root_ / "degenerate.csv").string()));
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_EQ(NumLines(result.stderr_text), 1) << result.stderr_text;
+  EXPECT_THAT(result.stderr_text, HasSubstr(db.string() + ": route: needs at least two"));
+  EXPECT_FALSE(fs::exists(root_ / "degenerate.csv"));
+}
+
+// Issue 18 (unseen inputs): `epiloc info > /dev/full` lost its whole output and exited 0.
+TEST_F(BuildDbErrors, StandardOutputThatCannotBeWrittenIsAnError) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  const std::string command =
+      fmt::format("{} info --db {} 2>&1 1>/dev/full", EPILOC_BINARY, db_.string());
+  FILE* pipe = popen(command.c_str(), "r");
+  std::string err;
+  std::array<char, 4096> buffer{};
+  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) err += buffer.data();
+  const int status = pclose(pipe);
+  EXPECT_EQ(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 1) << err;
+  EXPECT_EQ(NumLines(err), 1) << err;
+  EXPECT_THAT(err, HasSubstr("epiloc info: error: standard output: write failed"));
+}
+
 TEST_F(BuildDbErrors, LatitudeOutOfRange) {
   const fs::path drive = CopyDrive("bad_lat");
   ReplaceLine(drive / "gnss.csv", 3, "100.15,123.0,8.4,110.0");

@@ -77,6 +77,51 @@ TEST_F(OutputPaths, LocalizeRefusesToOverwriteTheDatabaseOrTheDrive) {
                 dir_ / "drive/frames.csv", {"--nmea-out", "frames.csv"});
 }
 
+// Issue 18 (unseen inputs): `localize --out <drive>/images/000003.png` overwrote a frame of the
+// drive with the result CSV: the images a frames CSV names (and the scans of a LiDAR CSV) are
+// inputs too.
+TEST_F(OutputPaths, TheImagesAndScansADriveNamesAreInputs) {
+  const std::string db = dir_ / "route.sqlite";
+  WriteText(dir_ / "drive2/drive.json",
+            R"({"epiloc_drive": 1, "name": "d", "frames": {"csv": "frames.csv"},
+                "lidar": {"csv": "lidar.csv"}})");
+  WriteText(dir_ / "drive2/frames.csv",
+            "frame,timestamp_s,image\n0,0,images/000000.png\n1,0.1," + dir_ / "elsewhere.png" +
+                "\n");
+  WriteText(dir_ / "drive2/images/000000.png", "stands for an image");
+  WriteText(dir_ / "elsewhere.png", "stands for another image");
+  WriteText(dir_ / "drive2/lidar.csv",
+            "scan,timestamp_s,path,format,lat_deg,lon_deg,alt_m,qw,qx,qy,qz\n"
+            "0,0,scans/0.bin,kitti_bin,49,8,100,1,0,0,0\n");
+  WriteText(dir_ / "drive2/scans/0.bin", "stands for a scan");
+  const std::string drive = dir_ / "drive2";
+  ExpectRefused(fmt::format("localize --db {} --drive {} --out {}", db, drive,
+                            dir_ / "drive2/images/000000.png"),
+                dir_ / "drive2/images/000000.png", {"--out", "input --drive", "000000.png"});
+  ExpectRefused(fmt::format("localize --db {} --drive {} --out - --diagnostics {}", db, drive,
+                            dir_ / "elsewhere.png"),
+                dir_ / "elsewhere.png", {"--diagnostics", "input --drive", "elsewhere.png"});
+  ExpectRefused(fmt::format("vo --drive {} --out {}", drive, dir_ / "drive2/scans/0.bin"),
+                dir_ / "drive2/scans/0.bin", {"--out", "input --drive", "0.bin"});
+}
+
+// Issue 18 (unseen inputs): outputs a command writes besides --out were not checked: `vo --points
+// <drive>/frames.csv` overwrote the drive's frames CSV; build-map's origin sidecar <out>.json
+// could overwrite an input named so.
+TEST_F(OutputPaths, SecondaryOutputsAreCheckedToo) {
+  const std::string drive = dir_ / "drive";
+  ExpectRefused(fmt::format("vo --drive {} --out {} --points {}", drive, dir_ / "vo.tum",
+                            dir_ / "drive/frames.csv"),
+                dir_ / "drive/frames.csv", {"--points", "input --drive", "frames.csv"});
+  EXPECT_FALSE(fs::exists(dir_ / "vo.tum"));
+  WriteText(dir_ / "map.ply.json", "{}");
+  fs::rename(dir_ / "drive/drive.json", dir_ / "drive/manifest.json");
+  fs::create_symlink("../map.ply.json", dir_ / "drive/drive.json");
+  WriteText(dir_ / "map.ply.json", ReadAll(dir_ / "drive/manifest.json"));
+  ExpectRefused(fmt::format("build-map --drive {} --out {}", drive, dir_ / "map.ply"),
+                dir_ / "map.ply.json", {"--out (sidecar)", "map.ply.json", "input --drive"});
+}
+
 TEST_F(OutputPaths, ExportEvaluateGeorefBuildDbRefuseTheirInputs) {
   const std::string result = dir_ / "result.csv";
   ExpectRefused(fmt::format("export --result {0} --format geojson --out {0}", result), result,

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <sstream>
 
 #include "epiloc/core/error.h"
 #include "test_util.h"
@@ -40,6 +41,56 @@ class CsvFileTest : public ::testing::Test {
   fs::path dir_;
 };
 
+
+// Issue 18 (unseen inputs): a file without line breaks (/dev/zero as a frames CSV or --config, a
+// binary file) was read into one std::string until memory ran out (16 GB before the 60 s
+// timeout). Lines are bounded; the message names the file and line, and quotes none of it.
+TEST(ReadLine, ALineBeyondTheBoundIsAnErrorNotAllMemory) {
+  TempDir dir;
+  const std::string path = dir / "frames.csv";
+  WriteText(path, "frame,timestamp_s,image\n0,0," + std::string(kMaxLineBytes + 10, 'x'));
+  const std::string message = ErrorOf([&] {
+    CsvReader csv(path);
+    while (csv.Next()) {
+    }
+  });
+  EXPECT_THAT(message, ::testing::HasSubstr(path + ":2: line longer than"));
+  EXPECT_LT(message.size(), 400u);
+  if (fs::exists("/dev/zero")) {
+    ExpectError([] { CsvReader csv("/dev/zero"); }, {"/dev/zero:1: line longer than"});
+  }
+}
+
+// Issue 18 (unseen inputs): "1,0.1,images/000001.png\0junk" read images/000001.png, exit 0.
+TEST(CsvReader, ANulByteInALineIsAnError) {
+  TempDir dir;
+  const std::string path = dir / "frames.csv";
+  WriteText(path, std::string("frame,timestamp_s,image\n1,0.1,images/1.png\0junk\n", 48));
+  ExpectError(
+      [&] {
+        CsvReader csv(path);
+        while (csv.Next()) {
+        }
+      },
+      {path + ":2: a NUL byte"});
+}
+
+TEST(ReadLine, BehavesAsGetlineOtherwise) {
+  std::istringstream in("a\n\nlast");
+  std::string line;
+  ASSERT_TRUE(ReadLine(in, line, "x", 1));
+  EXPECT_EQ(line, "a");
+  ASSERT_TRUE(ReadLine(in, line, "x", 2));
+  EXPECT_EQ(line, "");
+  ASSERT_TRUE(ReadLine(in, line, "x", 3));
+  EXPECT_EQ(line, "last");
+  EXPECT_TRUE(in.eof());
+  EXPECT_FALSE(ReadLine(in, line, "x", 4));
+  EXPECT_TRUE(in.fail());
+  std::istringstream exact(std::string(kMaxLineBytes, 'y') + "\n");
+  ASSERT_TRUE(ReadLine(exact, line, "x", 1));
+  EXPECT_EQ(line.size(), kMaxLineBytes);
+}
 
 TEST(SplitCsvLine, HandlesQuotesAndEmptyFields) {
   EXPECT_THAT(SplitCsvLine("a,b,c"), ElementsAre("a", "b", "c"));

@@ -3,6 +3,12 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -93,6 +99,87 @@ TEST(AtomicFile, CommitReplacesDiscardKeeps) {
   }
   EXPECT_EQ(ReadAll(dir / "out.png"), "new");
   EXPECT_EQ(NumEntries(dir.str()), 1u);
+}
+
+// Issue 18 (unseen inputs): `--out /dev/full` as root renamed the temporary file over the device
+// node, leaving a regular file at /dev/full. A FIFO stands in for a device here: it must stay a
+// FIFO and its reader must get the rows.
+TEST(AtomicFile, ADeviceOrFifoIsWrittenInPlaceNotReplaced) {
+  TempDir dir;
+  const std::string pipe = dir / "pipe";
+  ASSERT_EQ(::mkfifo(pipe.c_str(), 0600), 0);
+  const int reader = ::open(pipe.c_str(), O_RDONLY | O_NONBLOCK);  // so the writer's open returns
+  ASSERT_GE(reader, 0);
+  CheckOutputs({{"--out", pipe}}, {});
+  {
+    CsvWriter csv(pipe, {"a"});
+    csv.WriteRow({"1"});
+    csv.Close();
+  }
+  std::string received(64, '\0');
+  const ssize_t n = ::read(reader, received.data(), received.size());
+  ::close(reader);
+  ASSERT_GT(n, 0);
+  received.resize(static_cast<size_t>(n));
+  EXPECT_EQ(received, "a\n1\n");
+  EXPECT_TRUE(fs::is_fifo(fs::symlink_status(pipe)));
+  EXPECT_EQ(NumEntries(dir.str()), 1u);  // no temporary file beside it
+}
+
+TEST(AtomicFile, AFailedWriteToADeviceIsAnError) {
+  if (!fs::is_character_file("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  AtomicOfstream out("/dev/full");
+  for (int i = 0; i < 100000; ++i) out << "0123456789";
+  ExpectError([&] { out.Commit(); }, {"/dev/full", "write failed"});
+  EXPECT_TRUE(fs::is_character_file(fs::symlink_status("/dev/full")));
+}
+
+// Issue 18 (unseen inputs): `export --out -` wrote a file named "-" (the checks had skipped "-"
+// as standard output) and exited 0.
+TEST(AtomicFile, StandardOutputIsNotAFileName) {
+  TempDir dir;
+  const fs::path previous = fs::current_path();
+  fs::current_path(dir.str());
+  ExpectError([] { AtomicOfstream out("-"); }, {"-", "standard output"});
+  EXPECT_FALSE(fs::exists(dir / "-"));
+  fs::current_path(previous);
+}
+
+TEST(AtomicFile, ALinkStaysALink) {
+  TempDir dir;
+  fs::create_directories(dir / "real");
+  WriteText(dir / "real/out.csv", "old");
+  fs::create_symlink(dir / "real/out.csv", dir / "link.csv");
+  {
+    AtomicOfstream out(dir / "link.csv");
+    out << "new";
+    out.Commit();
+  }
+  EXPECT_TRUE(fs::is_symlink(fs::symlink_status(dir / "link.csv")));
+  EXPECT_EQ(ReadAll(dir / "real/out.csv"), "new");
+}
+
+// Issue 18 (unseen inputs): `localize` killed by SIGTERM or Ctrl-C left ".r.csv.tmp-<pid>-<n>.csv"
+// beside its outputs.
+TEST(AtomicFileDeathTest, ASignalRemovesTheTemporaryFiles) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  TempDir dir;
+  for (const int signal_number : {SIGTERM, SIGINT}) {
+    EXPECT_EXIT(
+        {
+          CsvWriter csv(dir / "r.csv", {"a"});
+          csv.WriteRow({"1"});
+          csv.Flush();
+          AtomicOfstream nmea(dir / "r.nmea");
+          nmea << "$GPGGA";
+          nmea.stream().flush();
+          if (NumEntries(dir.str()) != 2) std::_Exit(3);  // both temporaries exist
+          std::raise(signal_number);
+          std::_Exit(4);
+        },
+        ::testing::KilledBySignal(signal_number), "");
+    EXPECT_EQ(NumEntries(dir.str()), 0u);
+  }
 }
 
 TEST(CsvWriterAtomic, AFailedRunLeavesNoPartialFile) {

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <gmock/gmock.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -285,6 +286,20 @@ TEST(LoadDrive, RejectsBadManifests) {
   dir.Save();
   EXPECT_NO_THROW(LoadDrive(dir.str()));
 
+  // Issue 18 (unseen inputs): a key given twice was taken silently (the last one won).
+  {
+    std::string text = dir.manifest().dump();
+    const size_t camera = text.find("\"camera\":{");
+    ASSERT_NE(camera, std::string::npos);
+    text.insert(camera + 10, "\"fx\":700.0,");
+    WriteText(file, text);
+    ExpectError([&] { LoadDrive(dir.str()); }, {file, "key 'fx' is given twice"});
+    WriteText(file, "{\"name\": \"a\", " + dir.manifest().dump().substr(1));
+    ExpectError([&] { LoadDrive(dir.str()); }, {file, "key 'name' is given twice"});
+    WriteText(file, "{\"camera\": {\"fx\": 1}, \"frames\": {\"fx\": 1}}");
+    ExpectError([&] { LoadDrive(dir.str()); }, {file});  // the same key in two objects is fine
+    EXPECT_THAT(ErrorOf([&] { LoadDrive(dir.str()); }), ::testing::Not(::testing::HasSubstr("twice")));
+  }
   WriteText(file, "{\"epiloc_drive\": 1,");
   ExpectError([&] { LoadDrive(dir.str()); }, {file, "malformed JSON"});
   TempDir empty;

@@ -126,6 +126,28 @@ TEST(FrameReader, TruncatedImagesFoldersAndFifos) {
   ASSERT_EQ(::mkfifo((dir / "fifo.png").c_str(), 0600), 0);
   ExpectError([&] { ReadImageFile(dir / "fifo.png", camera, false); }, {"FIFO"});
   ExpectError([&] { ReadImageFile(dir / "absent.png", camera, false); }, {"not found"});
+
+  // Issue 18 (unseen inputs): a PNG whose header declares 60000x60000 pixels made OpenCV throw
+  // "OpenCV(4.6.0) .../loadsave.cpp:77: error: (-215:Assertion failed) pixels <= ..." without the
+  // file's name.
+  std::string bomb = png;
+  for (int i = 0; i < 2; ++i) {  // width and height, big-endian, after "\x89PNG\r\n\x1a\n" + IHDR
+    bomb[16 + 4 * i] = 0;
+    bomb[17 + 4 * i] = 0;
+    bomb[18 + 4 * i] = static_cast<char>(60000 >> 8);
+    bomb[19 + 4 * i] = static_cast<char>(60000 & 0xff);
+  }
+  uint32_t crc = 0xffffffffu;  // CRC-32 of the IHDR chunk's type and data
+  for (size_t i = 12; i < 29; ++i) {
+    crc ^= static_cast<uint8_t>(bomb[i]);
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+  }
+  crc ^= 0xffffffffu;
+  for (int i = 0; i < 4; ++i) bomb[29 + i] = static_cast<char>(crc >> (24 - 8 * i));
+  WriteText(dir / "bomb.png", bomb);
+  const std::string message = ErrorOf([&] { ReadImageFile(dir / "bomb.png", camera, false); });
+  EXPECT_THAT(message, ::testing::HasSubstr(dir / "bomb.png: cannot decode"));
+  EXPECT_THAT(message, ::testing::Not(::testing::HasSubstr("\n")));
 }
 
 // Issue 18 item 10: a frame listed in frames.csv is named by its line there and its image name as

@@ -121,6 +121,10 @@ TEST(KittiImport, RejectsBadInput) {
   options.step = 0;
   ExpectError([&] { ImportKitti(options); }, {"step"});
   options.step = 1;
+  // Issue 18 (unseen inputs): 1e308 wrote empty latitudes and an infinite altitude, exit 0.
+  options.gps_noise_sigma_m = 1e308;
+  ExpectError([&] { ImportKitti(options); }, {"gps_noise_sigma_m", "[0, 1000]"});
+  options.gps_noise_sigma_m = 0;
   fs::remove(kitti.root() + "/calib_imu_to_velo.txt");
   ExpectError([&] { ImportKitti(options); }, {kitti.root() + "/calib_imu_to_velo.txt"});
   WriteText(kitti.root() + "/calib_imu_to_velo.txt", "R: 1 0 0 0 1 0 0 0 1\n");

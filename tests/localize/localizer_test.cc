@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 
@@ -161,6 +162,14 @@ TEST(Localizer, BadInput) {
   LocalizeOptions options;
   options.track_window_m = 0;
   EXPECT_THROW(options.Check(), Error);
+  // Issue 18 (unseen inputs): --off-route-m nan (or -5) was taken; with NaN no GPS fix, however far
+  // from the route, could mark a frame off_route.
+  for (const double off_route_m : {std::nan(""), -5.0, 0.0}) {
+    LocalizeOptions off;
+    off.off_route_m = off_route_m;
+    EXPECT_THROW(off.Check(), Error) << off_route_m;
+  }
+  EXPECT_NO_THROW(LocalizeOptions().Check());
   EXPECT_THROW(Localize("/nonexistent/route.sqlite", "/nonexistent/drive", LocalizeOptions()),
                Error);
 }

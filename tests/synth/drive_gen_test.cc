@@ -271,6 +271,31 @@ TEST(GenerateSynthetic, OptionsAreChecked) {
   o = SynthOptions();
   o.query.frame_rate_hz = 0;
   EXPECT_THROW(o.Check(), Error);
+  // Issue 18 (unseen inputs): --length-m 1e9 ran without end, --query-speed-mps 1e-9 took 6.8 GB
+  // within a minute, --query-rate-hz 1e6 likewise; --gps-noise 1e308 was taken.
+  const auto message_of = [](const SynthOptions& options) {
+    try {
+      options.Check();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  o = SynthOptions();
+  o.length_m = 1e9;
+  EXPECT_NE(message_of(o).find("at most 5000 m"), std::string::npos) << message_of(o);
+  o = SynthOptions();
+  o.query.speed_mps = 1e-9;
+  EXPECT_NE(message_of(o).find("at most 200000"), std::string::npos) << message_of(o);
+  o = SynthOptions();
+  o.query.frame_rate_hz = 1e6;
+  EXPECT_NE(message_of(o).find("at most 200000"), std::string::npos) << message_of(o);
+  o = SynthOptions();
+  o.query.gnss.sigma_m = 1e308;
+  EXPECT_NE(message_of(o).find("sigma_m"), std::string::npos) << message_of(o);
+  o = SynthOptions();
+  o.length_m = 5000;
+  o.Check();  // the longest street still passes with the default drives
   o = SynthOptions();
   o.query.camera.fx = -1;
   EXPECT_THROW(GenerateSynthetic(o, TempDir("bad")), Error);

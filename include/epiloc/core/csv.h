@@ -25,6 +25,16 @@ std::vector<std::string> SplitCsvLine(const std::string& line);
 // Leading and trailing white space removed.
 std::string Trim(const std::string& text);
 
+// Longest line ReadLine accepts: far beyond any text line epiloc reads, far below the memory a
+// file without line breaks (/dev/zero, a binary file given as text) would take.
+constexpr size_t kMaxLineBytes = size_t{1} << 20;
+
+// std::getline for the text files epiloc reads, bounded: a line longer than kMaxLineBytes throws
+// Error "<path>:<line_number>: line longer than ... bytes" (line_number < 1: the path alone).
+// Returns false, with failbit set, when nothing was left to read; a last line without a newline
+// is returned with eofbit set, as std::getline does.
+bool ReadLine(std::istream& in, std::string& line, const std::string& path, int64_t line_number);
+
 class CsvReader {
  public:
   // Opens `path` and reads its header; throws Error if it cannot be read or has no header.

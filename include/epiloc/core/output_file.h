@@ -33,7 +33,11 @@ void CheckWritable(const std::string& path, const std::string& option);
 
 // A file written under a temporary name in its own folder and renamed over `path` on Commit(),
 // so a reader never sees a partial file and a failure leaves the previous file (or none).
-// Destroyed without Commit(), the temporary file is removed.
+// Destroyed without Commit(), the temporary file is removed. A symbolic link stays a link (the
+// file it points to is replaced). A device, FIFO or socket (/dev/null, /dev/full, a named pipe)
+// is written in place: temp_path() is `path` and Commit() renames nothing. SIGINT, SIGTERM and
+// SIGHUP (when not ignored or handled otherwise) remove the temporary files of the live
+// AtomicFiles before the process dies of the signal.
 class AtomicFile {
  public:
   explicit AtomicFile(const std::string& path);
@@ -53,6 +57,7 @@ class AtomicFile {
  private:
   std::string path_;
   std::string temp_path_;
+  bool in_place_ = false;  // a device or FIFO: written directly
   bool done_ = false;
 };
 

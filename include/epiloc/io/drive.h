@@ -112,7 +112,7 @@ Camera ReadCalibrationFile(const std::string& path);
 
 // The existing files and folders a drive directory's manifest names: `dir`/drive.json first, then
 // the frames CSV or image folder, video, timestamps, position files and folders, LiDAR CSV,
-// resolved against `dir`; for commands that must not write over their inputs. Reads only the
+// then the images the frames CSV and the scans the LiDAR CSV name, resolved against `dir`; for commands that must not write over their inputs. Reads only the
 // manifest and checks nothing: a missing or malformed one gives drive.json alone (the loader
 // reports it).
 std::vector<std::string> DriveInputPaths(const std::string& dir);

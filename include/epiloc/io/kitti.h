@@ -43,6 +43,9 @@
 
 namespace epiloc {
 
+// Largest simulated GNSS error sigma KittiImportOptions accepts, metres.
+constexpr double kMaxGpsNoiseSigmaM = 1000.0;
+
 struct KittiImportOptions {
   std::string raw_drive_dir;       // <date>/<date>_drive_NNNN_sync (calibration files one level up)
   int camera = 0;                  // camera number N in 0..3 (image_0N)
