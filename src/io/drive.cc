@@ -232,7 +232,8 @@ Json ParseJsonFile(std::istream& in, const std::string& file) {
     return true;
   };
   try {
-    return Json::parse(in, callback);
+    // Comments (// and /* */) are accepted: README's annotated example is meant to be copied.
+    return Json::parse(in, callback, /*allow_exceptions=*/true, /*ignore_comments=*/true);
   } catch (const Json::exception& e) {
     Throw("{}: malformed JSON: {}", file, e.what());
   }
@@ -312,7 +313,7 @@ std::vector<std::string> DriveInputPaths(const std::string& dir) {
   try {
     std::ifstream in(file);
     if (!in) return paths;
-    json = Json::parse(in);
+    json = Json::parse(in, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
   } catch (const Json::exception&) {
     return paths;
   }

@@ -300,7 +300,26 @@ TEST(LoadDrive, RejectsBadManifests) {
     ExpectError([&] { LoadDrive(dir.str()); }, {file});  // the same key in two objects is fine
     EXPECT_THAT(ErrorOf([&] { LoadDrive(dir.str()); }), ::testing::Not(::testing::HasSubstr("twice")));
   }
+  // Issue 18 (unseen inputs): README's annotated drive.json (// comments) was refused as
+  // malformed JSON; comments are accepted, and the values are the same.
+  {
+    dir.Save();
+    const Drive plain = LoadDrive(dir.str());
+    const std::vector<std::string> plain_inputs = DriveInputPaths(dir.str());
+    ASSERT_GT(plain_inputs.size(), 1u);
+    std::string text = dir.manifest().dump(2);
+    text.insert(text.find('\n'), "  // format version and name");
+    text.insert(text.find("\"camera\""), "/* calibration\n of the frames */ ");
+    WriteText(file, text + "\n// the end\n");
+    const Drive commented = LoadDrive(dir.str());
+    EXPECT_EQ(commented.camera.fx, plain.camera.fx);
+    EXPECT_EQ(commented.frames.size(), plain.frames.size());
+    EXPECT_EQ(commented.name, plain.name);
+    EXPECT_EQ(DriveInputPaths(dir.str()), plain_inputs);  // the output checks see the same inputs
+  }
   WriteText(file, "{\"epiloc_drive\": 1,");
+  ExpectError([&] { LoadDrive(dir.str()); }, {file, "malformed JSON"});
+  WriteText(file, "{\"epiloc_drive\": 1 /* unterminated }");
   ExpectError([&] { LoadDrive(dir.str()); }, {file, "malformed JSON"});
   TempDir empty;
   ExpectError([&] { LoadDrive(empty.str()); }, {empty / "drive.json"});
