@@ -106,9 +106,9 @@ PoseRefinement SolveAndCheck(const Camera& camera,
   // Each the larger of the model's and the jackknife's (errors shared by a region of the image).
   const Eigen::Matrix3d& model = pnp.center_covariance;
   const Eigen::Matrix3d& jack = pnp.center_covariance_jackknife;
-  out.sigma_along_model_m = std::sqrt(std::max(0.0, along_axis.dot(model * along_axis)));
-  out.sigma_along_m = std::sqrt(std::max(
-      {0.0, along_axis.dot(model * along_axis), along_axis.dot(jack * along_axis)}));
+  const double along_model = std::max(0.0, along_axis.dot(model * along_axis));
+  out.sigma_along_model_m = std::sqrt(along_model);
+  out.sigma_along_m = std::sqrt(std::max(along_model, along_axis.dot(jack * along_axis)));
   out.sigma_horizontal_m = std::sqrt(
       std::max({0.0, model(0, 0) + model(1, 1), jack(0, 0) + jack(1, 1)}));
   out.pose_covariance = pnp.pose_covariance;
