@@ -1,14 +1,16 @@
-// The survey chain without RTK and without photographs on the synthetic street (issue 17), run
-// with the epiloc binary as a user would: a LiDAR map from the survey drive's scans, monocular VO
-// of the query drive (3 m GNSS), anchors from the VO structure registered to the map (no
-// photographs, no rendering: `epiloc anchor --vo`), piecewise georeferencing (rows with frame
-// numbers, the drive taken from the VO file), a route database from that trajectory and the
-// survey drive localized against it. Each stage is checked against the exact ground truth.
+// The survey chain without RTK and without photographs (issue 17), run with the epiloc binary as a
+// user would: a LiDAR map from the survey drive's scans, monocular VO of the query drive (3 m
+// GNSS), anchors from the VO structure registered to the map (no photographs, no rendering:
+// `epiloc anchor --vo`), piecewise georeferencing (rows with frame numbers, the drive taken from
+// the VO file), a route database from that trajectory and the survey drive localized against it.
+// On the synthetic street (exact ground truth) and on the shared KITTI drive (OXTS; skipped
+// without ../shared/data). Each stage is checked against the ground truth.
 #include <sys/wait.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <string>
 
 #include <fmt/format.h>
@@ -30,7 +32,7 @@ void RunEpiloc(const std::string& args) {
 
 // Largest horizontal error of the ok rows of `method` against the drive's ground truth.
 double MaxHorizontal(const ResultTable& table, const std::string& method, const Drive& drive) {
-  const EnuFrame enu(SynthOrigin());
+  const EnuFrame enu(drive.ground_truth->samples.front().position);
   double worst = 0.0;
   for (const ResultRow& r : table.rows) {
     if (r.method != method || r.status != ResultStatus::kOk) continue;
@@ -98,6 +100,72 @@ TEST(PipelineStructure, MapVoAnchorGeorefDatabaseLocalize) {
   // these anchors, 17 of 26 frames were (the first waits for a second measurement).
   EXPECT_GE(online->evaluated() * 2, static_cast<int64_t>(survey_drive.frames.size()));
   EXPECT_LE(online->along_track.mean_abs, 6.0);
+}
+
+// The same chain on the shared KITTI drive, issue 17's development scenario: the map from camera
+// 0's LiDAR scans (every 5th scan in the shared copy, intensity only), camera 1 with 3 m GNSS
+// noise and a prior heading up to 5 degrees off, anchored every 10th frame from its own VO
+// structure; camera 0's drive localized on the route built from camera 1's georeferenced VO.
+TEST(PipelineStructure, KittiMapVoAnchorGeorefDatabaseLocalize) {
+  namespace fs = std::filesystem;
+  const fs::path raw =
+      fs::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
+  if (!fs::exists(raw)) GTEST_SKIP() << raw << " not found (real-data test needs ../shared/data)";
+  TempDir dir;
+  const std::string cam0 = dir / "cam0", cam1 = dir / "cam1";
+  RunEpiloc(fmt::format("import-kitti --raw {} --camera 0 --out {}", raw.string(), cam0));
+  RunEpiloc(fmt::format("import-kitti --raw {} --camera 1 --gps-noise 3 --out {}", raw.string(),
+                        cam1));
+  const Drive cam0_drive = LoadDrive(cam0);
+  const Drive cam1_drive = LoadDrive(cam1);
+  RunEpiloc(fmt::format("build-map --drive {} --out {}", cam0, dir / "map.ply"));
+  RunEpiloc(fmt::format("vo --drive {} --out {}", cam1, dir / "vo.tum"));
+  // By default the anchors weak along the road are rejected (all but one here, README);
+  // --max-along-sigma accepts them so that the chain runs and its figures show their worth.
+  RunEpiloc(fmt::format(
+      "anchor --cloud {} --drive {} --every 10 --heading-error-deg 5 --max-along-sigma 5 --vo {} "
+      "--out {}",
+      dir / "map.ply", cam1, dir / "vo.tum", dir / "anchors.csv"));
+  const ResultTable anchors = ReadResultCsv(dir / "anchors.csv");
+  int ok = 0;
+  for (const ResultRow& r : anchors.rows) ok += r.status == ResultStatus::kOk ? 1 : 0;
+  const double anchors_max = MaxHorizontal(anchors, "anchor", cam1_drive);
+  RunEpiloc(fmt::format("georef --vo {} --anchors {} --method piecewise --out {}", dir / "vo.tum",
+                        dir / "anchors.csv", dir / "trajectory.csv"));
+  const ResultTable trajectory = ReadResultCsv(dir / "trajectory.csv");
+  ASSERT_EQ(trajectory.rows.size(), cam1_drive.frames.size());
+  for (size_t i = 0; i < trajectory.rows.size(); ++i) {
+    EXPECT_EQ(trajectory.rows[i].frame, cam1_drive.frames[i].frame);
+  }
+  const double piecewise_max = MaxHorizontal(trajectory, "piecewise", cam1_drive);
+
+  RunEpiloc(fmt::format("build-db --drive {} --positions {} --db {}", cam1, dir / "trajectory.csv",
+                        dir / "route.sqlite"));
+  RunEpiloc(fmt::format("localize --db {} --drive {} --out {}", dir / "route.sqlite", cam0,
+                        dir / "localized.csv"));
+  const Evaluation evaluation =
+      Evaluate(ReadResultCsv(dir / "localized.csv"), *cam0_drive.ground_truth,
+               RouteFromDatabase(dir / "route.sqlite"), EvaluateOptions());
+  const MethodEvaluation* online = evaluation.Find("online");
+  ASSERT_NE(online, nullptr);
+  std::printf(
+      "KITTI structure anchors %d of %zu ok, horizontal max %.3f m; piecewise georef max %.3f m; "
+      "camera 0 localized on the VO route: online along-track mean %.3f m, max %.3f m over %lld "
+      "frames\n",
+      ok, anchors.rows.size(), anchors_max, piecewise_max, online->along_track.mean_abs,
+      std::max(-online->along_track.min, online->along_track.max),
+      static_cast<long long>(online->evaluated()));
+  // Targets (issue 17): anchors <= 0.5 m, piecewise georef <= 0.3 m; not reached. Reached, and
+  // asserted with a margin so that a regression fails: 15 of 16 anchors ok with
+  // --max-along-sigma 5 (frame 0: 2.7 m above the map's ground), every anchor with a pose
+  // within 1.94 m (the GNSS prior is 4-7 m off); piecewise max 2.30 m; camera 0 localized along
+  // that route: 153 of 154 frames, online along-track mean 0.62 m, max 2.16 m (the route is as
+  // wrong as its anchors).
+  EXPECT_GE(ok * 8, static_cast<int>(anchors.rows.size()) * 7);
+  EXPECT_LE(anchors_max, 2.5);
+  EXPECT_LE(piecewise_max, 3.0);
+  EXPECT_GE(online->evaluated() * 10, static_cast<int64_t>(cam0_drive.frames.size()) * 9);
+  EXPECT_LE(online->along_track.mean_abs, 1.0);
 }
 
 }  // namespace
