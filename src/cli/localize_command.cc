@@ -112,6 +112,9 @@ int RunLocalize(int argc, char** argv) {
   app.add_option("--survey-sigma-m", options.survey_sigma_m,
                  "Error of the survey positions, added to every reported sigma (0: exact)")
       ->capture_default_str();
+  app.add_option("--viewpoint-sigma-ratio", options.viewpoint_sigma_ratio,
+                 "6-DoF horizontal sigma added per metre of offset from the survey's line")
+      ->capture_default_str();
   app.add_option("--off-route-m", options.off_route_m,
                  "A GPS fix this far beside or beyond the route marks the frame off_route")
       ->capture_default_str();

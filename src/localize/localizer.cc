@@ -184,6 +184,8 @@ void LocalizeOptions::Check() const {
                "localize: max_latency_s must be >= 0");
   EPILOC_CHECK(survey_sigma_m >= 0 && std::isfinite(survey_sigma_m),
                "localize: survey_sigma_m must be finite and >= 0");
+  EPILOC_CHECK(viewpoint_sigma_ratio >= 0 && std::isfinite(viewpoint_sigma_ratio),
+               "localize: viewpoint_sigma_ratio must be finite and >= 0");
 }
 
 namespace {

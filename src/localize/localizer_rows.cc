@@ -154,10 +154,12 @@ std::vector<ResultRow> Localizer::Rows(const FrameEstimate& est) const {
                         ref.num_inliers);
   const double floor = options.evidence.pnp_floor_sigma_m, survey = options.survey_sigma_m;
   // The horizontal sigma is the root of the 2x2 covariance's trace: the floor and the survey's
-  // error, one-sigma per axis, enter it once for each of the two axes.
+  // error, one-sigma per axis, enter it once for each of the two axes; the map's viewpoint error
+  // once, across the route (LocalizeOptions::viewpoint_sigma_ratio).
+  const double viewpoint = options.viewpoint_sigma_ratio * ref.projection.cross_track_m;
   r.extra[kSigmaHorizontal] =
       FormatFixed(std::sqrt(ref.sigma_horizontal_m * ref.sigma_horizontal_m +
-                            2.0 * (floor * floor + survey * survey)),
+                            2.0 * (floor * floor + survey * survey) + viewpoint * viewpoint),
                   4);
   r.extra[kFlags] = Flags(est);
   const Eigen::Matrix3d rotation = ref.enu_from_cam.rotation.toRotationMatrix();
