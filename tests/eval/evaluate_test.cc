@@ -166,7 +166,8 @@ TEST(Evaluate, CountsFramesWhoseTruthIsOffTheRouteApart) {
   EXPECT_EQ(m.ok_off_route, 1);
   // A wider band takes the frame 8 m beside the route in.
   options.on_route_m = 10.0;
-  const MethodEvaluation& wide = *Evaluate(result, truth, LRoute(), options).Find("online");
+  const Evaluation wider = Evaluate(result, truth, LRoute(), options);
+  const MethodEvaluation& wide = *wider.Find("online");
   EXPECT_EQ(wide.truth_on_route, 4);
   EXPECT_EQ(wide.truth_off_route, 2);
   options.on_route_m = -1.0;
