@@ -224,6 +224,27 @@ TEST_F(BuildDbErrors, TruncatedImageNamesTheFramesCsvLine) {
   EXPECT_FALSE(fs::exists(root_ / "query.csv"));
 }
 
+// Issue 18 (leftovers): a failed first build left an empty database with its -wal and -shm
+// files; a later build-db then resumed into a database that had never held anything.
+TEST_F(BuildDbErrors, FailedFirstBuildLeavesNoDatabase) {
+  const fs::path corrupt = CopyDrive("first_corrupt");
+  WriteText(corrupt / "images/0004.png", "this is not a PNG file");
+  const fs::path missing = CopyDrive("first_missing");
+  for (int i = 1; i < kFrames; ++i) fs::remove(missing / fmt::format("images/{:04d}.png", i));
+  for (const auto& [drive, message] :
+       {std::pair<fs::path, std::string>{corrupt, "0004.png"}, {missing, "0001.png"}}) {
+    SCOPED_TRACE(drive.string());
+    const fs::path folder = root_ / ("new_" + drive.filename().string());
+    fs::create_directories(folder);
+    const RunResult result = RunEpiloc(fmt::format(
+        "build-db --quiet --drive {} --db {}", drive.string(), (folder / "route.sqlite").string()));
+    EXPECT_EQ(result.exit_code, 1) << result.stderr_text;
+    EXPECT_EQ(NumLines(result.stderr_text), 1) << result.stderr_text;
+    EXPECT_THAT(result.stderr_text, HasSubstr(message));
+    EXPECT_EQ(Listing(folder), "") << "a failed first build left files";
+  }
+}
+
 // Issue 18 (leftovers): commands that only read the database left empty <db>-wal and <db>-shm
 // files beside it (SQLite keeps them when the last connection to close is read-only).
 TEST_F(BuildDbErrors, ReadingCommandsLeaveTheDatabaseFolderAsTheyFoundIt) {
