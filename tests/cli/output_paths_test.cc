@@ -175,5 +175,29 @@ TEST_F(OutputPaths, AFailedExportLeavesThePreviousFileAndNoTemporaries) {
   }
 }
 
+// Issue 18 (leftovers): `vo` on a drive where no frame can be posed (featureless frames) exited
+// 0 with an empty trajectory.
+TEST_F(OutputPaths, VoThatPosesNothingFailsAndWritesNothing) {
+  const std::string drive = dir_ / "blank";
+  std::string frames = "frame,timestamp_s,image\n";
+  for (int i = 0; i < 8; ++i) {
+    // A uniform grey 64x48 PGM: nothing to track.
+    WriteText(drive + fmt::format("/images/{}.pgm", i),
+              "P5\n64 48\n255\n" + std::string(64 * 48, static_cast<char>(128)));
+    frames += fmt::format("{},{:.1f},images/{}.pgm\n", i, 0.1 * i, i);
+  }
+  WriteText(drive + "/frames.csv", frames);
+  WriteText(drive + "/drive.json",
+            R"({"epiloc_drive": 1, "name": "blank", "frames": {"csv": "frames.csv"},
+                "camera": {"width": 64, "height": 48, "fx": 60, "fy": 60, "cx": 32, "cy": 24}})");
+  const CliRun run = RunCli(fmt::format("vo --quiet --drive {} --out {}", drive, dir_ / "vo.tum"));
+  EXPECT_EQ(run.exit_code, 1) << run.err;
+  EXPECT_EQ(NumLines(run.err), 1) << run.err;
+  EXPECT_THAT(run.err, HasSubstr("blank"));
+  EXPECT_THAT(run.err, HasSubstr("0 of 8 frames could be posed"));
+  EXPECT_FALSE(fs::exists(dir_ / "vo.tum"));
+  EXPECT_FALSE(fs::exists(dir_ / "vo.points.csv"));
+}
+
 }  // namespace
 }  // namespace epiloc
