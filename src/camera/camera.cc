@@ -20,6 +20,59 @@ Eigen::Matrix3d Camera::K() const {
   return k;
 }
 
+namespace {
+
+// fy / fx within [kMinFocalRatio, kMaxFocalRatio]: pixels are square or nearly so on every real
+// sensor (anamorphic video formats stretch by 4:3 at most); beyond it is a typo (a digit lost or
+// added, fx and fy of two cameras mixed).
+constexpr double kMinFocalRatio = 0.5;
+constexpr double kMaxFocalRatio = 2.0;
+// The radial factor stays below this out to the image corner: real pincushion lenses stretch by a
+// few percent; a factor of 4 is a model extrapolated far beyond any calibration data.
+constexpr double kMaxRadialFactor = 4.0;
+
+// Undistortion maps each pixel of the undistorted image, through its undistorted normalised
+// coordinates, to the distorted image (Distort). The undistorted camera has about the distorted
+// one's intrinsics (getOptimalNewCameraMatrix with alpha 0 only crops inward), so it sees
+// normalised radii out to about the distorted image's corner radius; over that range the radial
+// map r -> r (1 + k1 r^2 + k2 r^4 + k3 r^6) must be one-to-one: increasing in r, and the factor
+// positive (a negative factor mirrors the point through the centre). Where it folds over, two
+// undistorted radii show the same pixel and the inverse (Undistort) converges to either or to
+// neither. Sampled finely enough for the polynomials of real lenses; the tangential terms are
+// bounded by kMaxTangentialDistortion.
+void CheckRadialDistortion(const Camera& camera, const std::string& where) {
+  const double k1 = camera.distortion[0], k2 = camera.distortion[1], k3 = camera.distortion[4];
+  if (k1 == 0 && k2 == 0 && k3 == 0) return;
+  double corner = 0.0;
+  for (const double x : {-0.5, camera.width - 0.5}) {
+    for (const double y : {-0.5, camera.height - 0.5}) {
+      corner =
+          std::max(corner, std::hypot((x - camera.cx) / camera.fx, (y - camera.cy) / camera.fy));
+    }
+  }
+  constexpr int kSteps = 2000;
+  for (int i = 1; i <= kSteps; ++i) {
+    const double r = corner * i / kSteps;
+    const double r2 = r * r;
+    const double factor = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+    const double slope = 1.0 + r2 * (3 * k1 + r2 * (5 * k2 + r2 * 7 * k3));
+    if (!(factor > 0) || !(slope > 0)) {
+      Throw(
+          "{}: distortion k1={} k2={} k3={} is not invertible over the image: the distorted "
+          "radius {} at normalised radius {:.3f}, inside the image corner's {:.3f}",
+          where, k1, k2, k3, factor > 0 ? "stops growing" : "changes sign", r, corner);
+    }
+    if (factor > kMaxRadialFactor) {
+      Throw(
+          "{}: distortion k1={} k2={} k3={} stretches the image {:.3g} times at normalised "
+          "radius {:.3f} (image corner {:.3f}), beyond the {} of any real lens",
+          where, k1, k2, k3, factor, r, corner, kMaxRadialFactor);
+    }
+  }
+}
+
+}  // namespace
+
 void Camera::Check(const std::string& where) const {
   if (width <= 0 || height <= 0) Throw("{}: image size {}x{} must be positive", where, width, height);
   if (width >= kMaxImageSide || height >= kMaxImageSide) {
@@ -55,6 +108,14 @@ void Camera::Check(const std::string& where) const {
             kNames[i], distortion[i], bound);
     }
   }
+  const double ratio = fy / fx;
+  if (ratio < kMinFocalRatio || ratio > kMaxFocalRatio) {
+    Throw(
+        "{}: fy / fx = {:.4g} (fx {} px, fy {} px) is outside [{}, {}]: pixels are square or "
+        "nearly so on every real sensor",
+        where, ratio, fx, fy, kMinFocalRatio, kMaxFocalRatio);
+  }
+  CheckRadialDistortion(*this, where);
 }
 
 Eigen::Vector2d Camera::Distort(const Eigen::Vector2d& n) const {

@@ -3,6 +3,7 @@
 
 #include "cli_common.h"
 #include "epiloc/cli/commands.h"
+#include "epiloc/core/error.h"
 #include "epiloc/core/progress.h"
 #include "epiloc/io/drive.h"
 #include "epiloc/vo/visual_odometry.h"
@@ -58,6 +59,13 @@ int RunVo(int argc, char** argv) {
   Progress progress("vo", static_cast<int64_t>(drive.frames.size()));
   const VoResult result = RunVisualOdometry(drive, options, progress.Callback());
   progress.Finish();
+  // An empty (or one-pose) trajectory is no result: `epiloc georef` cannot use it.
+  if (result.poses.size() < 2) {
+    Throw(
+        "{}: drive '{}': {} of {} frames could be posed (too few frames, or too little texture "
+        "to track); nothing written",
+        drive.dir, drive.name, result.poses.size(), drive.frames.size());
+  }
   WriteVoTrajectory(result, out_path, drive.name, drive.dir);
   if (options.keep_points) {
     WriteVoPoints(result.points, points_path);

@@ -122,13 +122,29 @@ Database::Impl::Impl(const std::string& path, Mode mode) : path_(path) {
     // Before switching to WAL, which would persist in another program's database and leave
     // -wal/-shm files beside it.
     if (version == 0) RefuseForeignTables();
-    if (path != ":memory:" && !path.empty()) {
+    if (on_disk) {
       Exec("PRAGMA journal_mode = WAL", "enabling write-ahead logging");
+      wal_writer_ = true;
     }
     Exec("PRAGMA synchronous = NORMAL", "setting synchronous mode");
     if (version < kLatestSchemaVersion) Migrate();
   }
   PrepareStatements();
+}
+
+// WAL while a writer works (a reader is never blocked by it, nor it by a reader), but a
+// rollback journal at rest. SQLite removes <db>-wal and <db>-shm when the last connection closes
+// only if that connection can write: a read-only one (every reading command) leaves both behind,
+// empty, for a WAL-mode file. In rollback-journal mode a reader needs no file beside the
+// database, so reading commands leave the folder as they found it. Leaving WAL mode needs the
+// database to itself: with another connection open (a concurrent reader or build) it fails at
+// once and the file stays in WAL mode; the last writer to close switches it.
+Database::Impl::~Impl() {
+  if (!wal_writer_ || db() == nullptr) return;
+  statements_.clear();
+  sqlite3_busy_timeout(db(), 0);
+  // A destructor must not throw; a failure leaves a valid WAL-mode database.
+  sqlite3_exec(db(), "PRAGMA journal_mode = DELETE", nullptr, nullptr, nullptr);
 }
 
 void Database::Impl::Exec(const std::string& sql, std::string_view what) {

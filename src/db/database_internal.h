@@ -121,6 +121,10 @@ class Query {
 class Database::Impl {
  public:
   Impl(const std::string& path, Mode mode);
+  // A writer of a file leaves it in rollback-journal mode (see connection.cc).
+  ~Impl();
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
 
   sqlite3* db() const { return connection_.get(); }
   const std::string& path() const { return path_; }
@@ -190,6 +194,7 @@ class Database::Impl {
   sqlite3_stmt* Prepare(const std::string& sql);
 
   std::string path_;
+  bool wal_writer_ = false;  // switched an on-disk file to WAL: switches it back when closing
   std::unique_ptr<sqlite3, internal::ConnectionCloser> connection_;
   // Declared after the connection, so finalized before it is closed.
   std::vector<std::unique_ptr<sqlite3_stmt, internal::StatementFinalizer>>

@@ -137,6 +137,22 @@ std::string DefaultName(const fs::path& raw_dir, int camera) {
   return "kitti_" + base + "_cam" + std::to_string(camera);
 }
 
+// True if `path` is `folder` or lies inside it, symbolic links and ".." resolved in both
+// (weakly_canonical: the part that exists).
+bool IsWithin(const fs::path& path, const fs::path& folder) {
+  std::error_code error;
+  const fs::path p = fs::weakly_canonical(fs::absolute(path, error), error).lexically_normal();
+  const fs::path f = fs::weakly_canonical(fs::absolute(folder, error), error).lexically_normal();
+  if (f == f.root_path()) return false;  // a drive folder right under "/": no calibration folder
+  auto pi = p.begin();
+  for (auto fi = f.begin(); fi != f.end(); ++fi) {
+    if (fi->empty()) continue;  // the trailing "" of "dir/"
+    if (pi == p.end() || *pi != *fi) return false;
+    ++pi;
+  }
+  return true;
+}
+
 }  // namespace
 
 void KittiImportOptions::Check() const {
@@ -199,6 +215,18 @@ Drive ImportKitti(const KittiImportOptions& options) {
   if (raw.filename().empty()) raw = raw.parent_path();
   if (!fs::is_directory(raw)) Throw("{}: KITTI drive folder not found", raw.string());
   const fs::path calib_dir = raw.parent_path();
+  // The drive folder and the calibration folder above it are inputs (often read-only shared data):
+  // the import once wrote into them.
+  if (!options.out_dir.empty()) {
+    for (const fs::path& input : {raw, calib_dir}) {
+      if (IsWithin(options.out_dir, input)) {
+        Throw(
+            "KITTI import: the output folder {} is inside the KITTI input folder {}: refusing to "
+            "write into an input",
+            options.out_dir, input.string());
+      }
+    }
+  }
   const std::string n = "0" + std::to_string(options.camera);
 
   const CalibFile cam_to_cam((calib_dir / "calib_cam_to_cam.txt").string());

@@ -1,10 +1,14 @@
 #include "epiloc/survey/build_db.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <exception>
+#include <filesystem>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -155,6 +159,45 @@ void UndoBuild(Database& db,
   }
 }
 
+// Creates the database file when it does not exist yet and, if this run created it, removes it
+// with its -wal, -shm and -journal when the run fails, so a failed first build leaves nothing
+// behind. Declared before the Database, so it runs after the connection has closed. Creating the
+// file exclusively here (an empty file is an empty SQLite database) decides which of two
+// concurrent first builds created it. A file another process opened meanwhile stays: its
+// connection keeps <db>-wal (the last connection to close removes it), and deleting files under
+// an open database would lose that process's work.
+class NewDatabaseFile {
+ public:
+  explicit NewDatabaseFile(const std::string& path)
+      : path_(path), exceptions_(std::uncaught_exceptions()) {
+    if (path.empty() || path == ":memory:") return;
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    // EEXIST: a database to add to; other errors are SQLite's to report when it opens the file.
+    if (fd >= 0) {
+      ::close(fd);
+      created_ = true;
+    }
+  }
+  ~NewDatabaseFile() {
+    if (!created_ || std::uncaught_exceptions() <= exceptions_) return;
+    std::error_code error;
+    if (std::filesystem::exists(path_ + "-wal", error)) {
+      spdlog::warn("{}: another process opened the new database; it is left in place", path_);
+      return;
+    }
+    for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
+      std::filesystem::remove(path_ + suffix, error);
+    }
+  }
+  NewDatabaseFile(const NewDatabaseFile&) = delete;
+  NewDatabaseFile& operator=(const NewDatabaseFile&) = delete;
+
+ private:
+  std::string path_;
+  int exceptions_;
+  bool created_ = false;
+};
+
 }  // namespace
 
 void BuildDbOptions::Check() const {
@@ -189,6 +232,7 @@ BuildDbSummary BuildDatabase(const std::string& drive_dir,
 
   const Undistorter undistorter(drive.camera);
   const FrameReader reader(drive);
+  const NewDatabaseFile new_file(db_path);
   Database db(db_path);
 
   // Set-up is one unit of work: origin, route, camera and drive rows appear together or not at all.

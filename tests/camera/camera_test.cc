@@ -4,8 +4,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <limits>
+#include <map>
 #include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
 
 #include "camera_test_util.h"
 #include "epiloc/core/error.h"
@@ -103,6 +110,76 @@ TEST(Camera, CheckReportsInvalidValues) {
   camera = KittiCamera();
   camera.distortion[4] = std::nan("");
   EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("distortion"));
+}
+
+// Issue 18 (leftovers): absurd distortion and fy / fx were accepted as long as each coefficient
+// stayed below its bound.
+TEST(Camera, CheckRefusesADistortionThatFoldsOverAndNonSquarePixels) {
+  Camera camera = KittiCamera();
+  camera.distortion = {50.0, -300.0, 0.0, 0.0, 0.0};
+  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }),
+              HasSubstr("c: distortion k1=50 k2=-300 k3=0 is not invertible over the image: the "
+                        "distorted radius stops growing"));
+  camera.distortion = {-2.0, 0.0, 0.0, 0.0, 0.0};  // folds at r = 0.41, the corner is at 0.77
+  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("not invertible over the image"));
+  camera.distortion = {0.0, 0.0, 0.0, 0.0, -30.0};
+  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("not invertible over the image"));
+  camera.distortion = {50.0, 0.0, 0.0, 0.0, 0.0};  // one-to-one, but stretched 30 times
+  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("stretches the image"));
+  camera = KittiCamera();
+  camera.fy = 20.0 * camera.fx;  // within the focal length's own bounds for this image size
+  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("c: fy / fx = 20 "));
+  camera.fy = 0.4 * camera.fx;
+  EXPECT_THAT(ErrorOf([&] { camera.Check("c"); }), HasSubstr("fy / fx = 0.4"));
+  camera.fy = 1.9 * camera.fx;  // generous: real sensors stay near 1
+  EXPECT_NO_THROW(camera.Check("c"));
+}
+
+TEST(Camera, CheckAcceptsRealCalibrations) {
+  EXPECT_NO_THROW(KittiCamera().Check("kitti"));
+  // OpenCV-typical wide-angle values at 1080p.
+  Camera wide;
+  wide.width = 1920;
+  wide.height = 1080;
+  wide.fx = wide.fy = 1000.0;
+  wide.cx = 959.5;
+  wide.cy = 539.5;
+  wide.distortion = {-0.4, 0.2, 0.0, 0.0, -0.05};
+  EXPECT_NO_THROW(wide.Check("wide"));
+  wide.distortion = {-0.4, 0.2, 0.001, -0.001, -0.05};
+  EXPECT_NO_THROW(wide.Check("wide"));
+  wide.distortion = {0.05, -0.01, 0.0, 0.0, 0.0};  // mild pincushion
+  EXPECT_NO_THROW(wide.Check("wide"));
+  // The unrectified cameras of the shared KITTI drive (K_0N, D_0N of calib_cam_to_cam.txt).
+  const std::string calib =
+      std::string(EPILOC_SHARED_DATA_DIR) + "/kitti_raw/2011_09_26/calib_cam_to_cam.txt";
+  std::ifstream in(calib);
+  if (!in) GTEST_SKIP() << calib << " is absent";
+  std::map<std::string, std::vector<double>> values;
+  for (std::string line; std::getline(in, line);) {
+    std::istringstream fields(line);
+    std::string key;
+    fields >> key;
+    for (double v; fields >> v;) values[key].push_back(v);
+  }
+  for (int n = 0; n < 4; ++n) {
+    SCOPED_TRACE(n);
+    const std::vector<double>& k = values[fmt::format("K_0{}:", n)];
+    const std::vector<double>& d = values[fmt::format("D_0{}:", n)];
+    const std::vector<double>& size = values[fmt::format("S_0{}:", n)];
+    ASSERT_EQ(k.size(), 9u);
+    ASSERT_EQ(d.size(), 5u);
+    ASSERT_EQ(size.size(), 2u);
+    Camera camera;
+    camera.width = static_cast<int>(size[0]);
+    camera.height = static_cast<int>(size[1]);
+    camera.fx = k[0];
+    camera.cx = k[2];
+    camera.fy = k[4];
+    camera.cy = k[5];
+    for (int i = 0; i < 5; ++i) camera.distortion[i] = d[i];
+    EXPECT_NO_THROW(camera.Check(calib));
+  }
 }
 
 TEST(Camera, ScaledKeepsPixelCentres) {

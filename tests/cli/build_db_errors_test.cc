@@ -3,13 +3,15 @@
 #include <sqlite3.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <string>
+#include <vector>
 
 #include <fmt/format.h>
 #include <gmock/gmock.h>
@@ -52,6 +54,19 @@ int NumLines(const std::string& text) {
 
 void WriteText(const fs::path& path, const std::string& text) {
   std::ofstream(path) << text;
+}
+
+// The names in `dir` starting with `prefix`, sorted, space-separated.
+std::string Listing(const fs::path& dir, const std::string& prefix = "") {
+  std::vector<std::string> names;
+  for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(prefix, 0) == 0) names.push_back(name);
+  }
+  std::sort(names.begin(), names.end());
+  std::string text;
+  for (const std::string& name : names) text += (text.empty() ? "" : " ") + name;
+  return text;
 }
 
 // Everything a test needs to compare a database before and after: row counts and integrity.
@@ -158,6 +173,7 @@ class BuildDbErrors : public ::testing::Test {
     EXPECT_THAT(result.stderr_text, HasSubstr("epiloc build-db: error: "));
     EXPECT_THAT(result.stderr_text, HasSubstr(expected_in_message));
     EXPECT_EQ(Snapshot(db_), before_) << "the database changed";
+    EXPECT_EQ(Listing(root_, "route.sqlite"), "route.sqlite") << "files left beside the database";
   }
 
   static constexpr int kFrames = 6;
@@ -206,6 +222,51 @@ TEST_F(BuildDbErrors, TruncatedImageNamesTheFramesCsvLine) {
               HasSubstr("epiloc localize: error: " + (survey / "frames.csv").string() +
                         ":6: image images/0004.png: cannot decode (truncated PNG: "));
   EXPECT_FALSE(fs::exists(root_ / "query.csv"));
+}
+
+// Issue 18 (leftovers): a failed first build left an empty database with its -wal and -shm
+// files; a later build-db then resumed into a database that had never held anything.
+TEST_F(BuildDbErrors, FailedFirstBuildLeavesNoDatabase) {
+  const fs::path corrupt = CopyDrive("first_corrupt");
+  WriteText(corrupt / "images/0004.png", "this is not a PNG file");
+  const fs::path missing = CopyDrive("first_missing");
+  for (int i = 1; i < kFrames; ++i) fs::remove(missing / fmt::format("images/{:04d}.png", i));
+  for (const auto& [drive, message] :
+       {std::pair<fs::path, std::string>{corrupt, "0004.png"}, {missing, "0001.png"}}) {
+    SCOPED_TRACE(drive.string());
+    const fs::path folder = root_ / ("new_" + drive.filename().string());
+    fs::create_directories(folder);
+    const RunResult result = RunEpiloc(fmt::format(
+        "build-db --quiet --drive {} --db {}", drive.string(), (folder / "route.sqlite").string()));
+    EXPECT_EQ(result.exit_code, 1) << result.stderr_text;
+    EXPECT_EQ(NumLines(result.stderr_text), 1) << result.stderr_text;
+    EXPECT_THAT(result.stderr_text, HasSubstr(message));
+    EXPECT_EQ(Listing(folder), "") << "a failed first build left files";
+  }
+}
+
+// Issue 18 (leftovers): commands that only read the database left empty <db>-wal and <db>-shm
+// files beside it (SQLite keeps them when the last connection to close is read-only).
+TEST_F(BuildDbErrors, ReadingCommandsLeaveTheDatabaseFolderAsTheyFoundIt) {
+  ASSERT_EQ(Listing(root_, "route.sqlite"), "route.sqlite");
+  const fs::path out = root_ / "out";
+  fs::create_directories(out);
+  for (const std::string& args :
+       {fmt::format("info --db {}", db_.string()),
+        fmt::format("localize --db {} --drive {} --out {}", db_.string(), (root_ / "good").string(),
+                    (out / "result.csv").string())}) {
+    SCOPED_TRACE(args);
+    const RunResult result = RunEpiloc(args);
+    EXPECT_EQ(result.exit_code, 0) << result.stderr_text;
+    EXPECT_EQ(Listing(root_, "route.sqlite"), "route.sqlite");
+  }
+  // A later build still adds to it.
+  const RunResult second =
+      RunEpiloc(fmt::format("build-db --quiet --no-triangulate --drive {} --db {}",
+                            CopyDrive("second").string(), db_.string()));
+  EXPECT_EQ(second.exit_code, 0) << second.stderr_text;
+  EXPECT_THAT(Snapshot(db_), HasSubstr("good,second;"));
+  EXPECT_EQ(Listing(root_, "route.sqlite"), "route.sqlite");
 }
 
 TEST_F(BuildDbErrors, MalformedCsvLine) {
@@ -261,6 +322,15 @@ TEST_F(BuildDbErrors, AbsurdCalibrationIsRefused) {
       {"k1_huge",
        R"("fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240, "distortion": [1e10, 0, 0, 0, 0])",
        "k1"},
+      // Issue 18 (leftovers): each coefficient within its bound, the model not invertible.
+      {"k1_k2_fold",
+       R"("fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240, "distortion": [50, -300, 0, 0, 0])",
+       "camera: distortion k1=50 k2=-300 k3=0 is not invertible over the image"},
+      {"k1_stretch",
+       R"("fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240, "distortion": [50, 0, 0, 0, 0])",
+       "stretches the image"},
+      {"fy_20_fx", R"("fx": 300, "fy": 6000, "cx": 160, "cy": 120, "width": 320, "height": 240)",
+       "camera: fy / fx = 20 "},
       {"width_wraps",
        R"("fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 4294967297, "height": 240)",
        "camera.width"},

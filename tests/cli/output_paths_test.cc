@@ -175,5 +175,80 @@ TEST_F(OutputPaths, AFailedExportLeavesThePreviousFileAndNoTemporaries) {
   }
 }
 
+// Issue 18 (leftovers): `vo` on a drive where no frame can be posed (featureless frames) exited
+// 0 with an empty trajectory.
+TEST_F(OutputPaths, VoThatPosesNothingFailsAndWritesNothing) {
+  const std::string drive = dir_ / "blank";
+  std::string frames = "frame,timestamp_s,image\n";
+  for (int i = 0; i < 8; ++i) {
+    // A uniform grey 64x48 PGM: nothing to track.
+    WriteText(drive + fmt::format("/images/{}.pgm", i),
+              "P5\n64 48\n255\n" + std::string(64 * 48, static_cast<char>(128)));
+    frames += fmt::format("{},{:.1f},images/{}.pgm\n", i, 0.1 * i, i);
+  }
+  WriteText(drive + "/frames.csv", frames);
+  WriteText(drive + "/drive.json",
+            R"({"epiloc_drive": 1, "name": "blank", "frames": {"csv": "frames.csv"},
+                "camera": {"width": 64, "height": 48, "fx": 60, "fy": 60, "cx": 32, "cy": 24}})");
+  const CliRun run = RunCli(fmt::format("vo --quiet --drive {} --out {}", drive, dir_ / "vo.tum"));
+  EXPECT_EQ(run.exit_code, 1) << run.err;
+  EXPECT_EQ(NumLines(run.err), 1) << run.err;
+  EXPECT_THAT(run.err, HasSubstr("blank"));
+  EXPECT_THAT(run.err, HasSubstr("0 of 8 frames could be posed"));
+  EXPECT_FALSE(fs::exists(dir_ / "vo.tum"));
+  EXPECT_FALSE(fs::exists(dir_ / "vo.points.csv"));
+}
+
+// Issue 18 (leftovers): `import-kitti --out` inside the raw KITTI folder wrote into the (read-only
+// shared) input data. Refused before anything is written, symbolic links resolved; the folder
+// with the calibration files (the raw drive's parent) is an input folder too.
+TEST_F(OutputPaths, ImportKittiRefusesAnOutputInsideTheInput) {
+  const std::string calib = dir_ / "kitti/2011_09_26";
+  const std::string raw = calib + "/2011_09_26_drive_0001_sync";
+  fs::create_directories(raw + "/image_00/data");
+  fs::create_directory_symlink(raw, dir_ / "link");
+  for (const std::string& out : {raw, raw + "/", raw + "/imported", raw + "/image_00/../imported",
+                                 dir_ / "link/imported", calib + "/imported"}) {
+    SCOPED_TRACE(out);
+    const CliRun run = RunCli(fmt::format("import-kitti --quiet --raw {} --out {}", raw, out));
+    EXPECT_EQ(run.exit_code, 1) << run.err;
+    EXPECT_EQ(NumLines(run.err), 1) << run.err;
+    EXPECT_THAT(run.err, HasSubstr("inside the KITTI input folder"));
+    EXPECT_FALSE(fs::exists(raw + "/imported"));
+    EXPECT_FALSE(fs::exists(calib + "/imported"));
+  }
+  // Elsewhere the import goes on (and here fails on the missing calibration, not on --out).
+  const CliRun elsewhere =
+      RunCli(fmt::format("import-kitti --quiet --raw {} --out {}", raw, dir_ / "imported"));
+  EXPECT_EQ(elsewhere.exit_code, 1);
+  EXPECT_THAT(elsewhere.err, HasSubstr("calib_cam_to_cam.txt"));
+
+  // With the real KITTI drive (a copy of its tree made of links, so nothing can reach the shared
+  // data): the import wrote its drive inside the raw folder.
+  const std::string shared = std::string(EPILOC_SHARED_DATA_DIR) + "/kitti_raw/2011_09_26";
+  if (!fs::is_directory(shared + "/2011_09_26_drive_0005_sync")) {
+    GTEST_SKIP() << shared << " is absent";
+  }
+  const std::string kitti = dir_ / "real/2011_09_26";
+  const std::string drive = kitti + "/2011_09_26_drive_0005_sync";
+  fs::create_directories(drive);
+  for (const char* file :
+       {"calib_cam_to_cam.txt", "calib_imu_to_velo.txt", "calib_velo_to_cam.txt"}) {
+    fs::copy_file(shared + "/" + file, kitti + "/" + file);
+  }
+  for (const auto& entry : fs::directory_iterator(shared + "/2011_09_26_drive_0005_sync")) {
+    fs::create_directory_symlink(entry.path(), drive + "/" + entry.path().filename().string());
+  }
+  const CliRun inside = RunCli(fmt::format("import-kitti --quiet --raw {} --frames 0:4 --out {}",
+                                           drive, drive + "/imported"));
+  EXPECT_EQ(inside.exit_code, 1) << inside.err;
+  EXPECT_THAT(inside.err, HasSubstr("inside the KITTI input folder"));
+  EXPECT_FALSE(fs::exists(drive + "/imported"));
+  const CliRun outside = RunCli(fmt::format("import-kitti --quiet --raw {} --frames 0:4 --out {}",
+                                            drive, dir_ / "real_imported"));
+  EXPECT_EQ(outside.exit_code, 0) << outside.err;
+  EXPECT_TRUE(fs::exists(dir_ / "real_imported/drive.json"));
+}
+
 }  // namespace
 }  // namespace epiloc

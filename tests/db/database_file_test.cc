@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <memory>
+#include <string>
 
 #include "db_test_util.h"
 
@@ -30,7 +32,9 @@ TEST_F(DatabaseFileTest, MigratesAnEmptyVersionZeroFile) {
   EXPECT_EQ(
       raw.QueryInt("SELECT count(*) FROM sqlite_schema WHERE name = 'frames'"),
       1);
-  EXPECT_EQ(raw.QueryText("PRAGMA journal_mode"), "wal");
+  // WAL only while a writer has it open: at rest a rollback journal, so readers need no files
+  // beside it (issue 18, leftovers).
+  EXPECT_EQ(raw.QueryText("PRAGMA journal_mode"), "delete");
 }
 
 TEST_F(DatabaseFileTest, MigratesEveryOlderVersionAndKeepsItsData) {
@@ -234,6 +238,57 @@ TEST_F(DatabaseFileTest, LockedDatabaseFailsQuicklyWithAClearMessage) {
   db.SetMeta("k", "after");
   EXPECT_EQ(db.GetMeta("k"), "after");
   EXPECT_EQ(db.GetMeta("other"), "writer");
+}
+
+// The names of the files beside `path` (its -wal, -shm, -journal), space-separated.
+std::string FilesBeside(const std::string& path) {
+  std::string text;
+  for (const char* suffix : {"-wal", "-shm", "-journal"}) {
+    if (fs::exists(path + suffix)) text += (text.empty() ? "" : " ") + path + suffix;
+  }
+  return text;
+}
+
+// Issue 18 (leftovers): a reader left empty <db>-wal and <db>-shm files beside a WAL-mode
+// database (SQLite keeps them when the last connection to close is read-only).
+TEST_F(DatabaseFileTest, ReaderLeavesNoFilesBeside) {
+  const std::string path = PathOf("route.db");
+  Sample sample;
+  {
+    Database db(path);
+    sample = WriteSample(&db, 5);
+  }
+  EXPECT_EQ(FilesBeside(path), "");
+  {
+    const Database db(path, Database::Mode::kReadOnly);
+    ExpectSample(sample, db);
+  }
+  EXPECT_EQ(FilesBeside(path), "");
+}
+
+// A reader during a write: both work (WAL while a writer is open); the writer closing first
+// cannot leave WAL mode under the reader and does not wait for it; the next writer to close
+// leaves the folder clean again.
+TEST_F(DatabaseFileTest, ReaderDuringAWriteAndAfterIt) {
+  const std::string path = PathOf("route.db");
+  {
+    Database db(path);
+    db.SetMeta("k", "first");
+  }
+  auto writer = std::make_unique<Database>(path);
+  const Database reader(path, Database::Mode::kReadOnly);
+  EXPECT_EQ(reader.GetMeta("k"), "first");
+  writer->SetMeta("k", "second");
+  EXPECT_EQ(reader.GetMeta("k"), "second");
+  const auto start = std::chrono::steady_clock::now();
+  writer.reset();
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0);
+  EXPECT_EQ(reader.GetMeta("k"), "second");
+  {
+    Database again(path);
+    EXPECT_EQ(again.GetMeta("k"), "second");
+  }
+  EXPECT_EQ(reader.GetMeta("k"), "second");
 }
 
 TEST_F(DatabaseFileTest, ReadOnlyModeReadsAndNeverWrites) {

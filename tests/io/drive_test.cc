@@ -1,5 +1,7 @@
 #include "epiloc/io/drive.h"
 
+#include <fstream>
+
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <gmock/gmock.h>
@@ -270,6 +272,23 @@ TEST(LoadDrive, RejectsBadManifests) {
   dir.manifest()["camera"] = CameraJson();
   dir.manifest()["camera"]["distortion"] = {0.1, 0.2};
   dir.ExpectLoadError({file, "camera.distortion"});
+  // Issue 18 (leftovers): a distortion that folds over inside the image and non-square pixels.
+  dir.manifest()["camera"] = CameraJson();
+  dir.manifest()["camera"]["distortion"] = {50.0, -300.0, 0.0, 0.0, 0.0};
+  dir.ExpectLoadError({file, "camera: distortion k1=50 k2=-300", "not invertible"});
+  dir.manifest()["camera"] = CameraJson();
+  dir.manifest()["camera"]["fy"] = 20.0 * dir.manifest()["camera"]["fx"].get<double>();
+  dir.ExpectLoadError({file, "camera: fy / fx = 20 "});
+  {
+    // The same checks on a --calibration file, named in the message.
+    const std::string calibration = dir / "calibration.json";
+    Json json;
+    json["camera"] = CameraJson();
+    json["camera"]["distortion"] = {50.0, -300.0, 0.0, 0.0, 0.0};
+    std::ofstream(calibration) << json.dump();
+    EXPECT_THAT(ErrorOf([&] { ReadCalibrationFile(calibration); }),
+                ::testing::HasSubstr(calibration + ": camera: distortion k1=50"));
+  }
   dir.manifest()["camera"] = CameraJson();
   dir.manifest()["camera"]["width"] = kWidth + 1;
   dir.ExpectLoadError({dir / "images/img_1.png", "64x48", "65x48"});

@@ -28,6 +28,16 @@ TEST(CameraPresets, DashcamAndVgaHaveTheirSizeRateAndFieldOfView) {
   EXPECT_THROW(ApplyQueryCameraPreset("fisheye", &drive), Error);
 }
 
+// The synthetic world's cameras pass the calibration checks every drive.json goes through.
+TEST(CameraPresets, EveryPresetAndTheSurveyCameraPassCameraCheck) {
+  EXPECT_NO_THROW(DriveOptions::Survey().camera.Check("survey"));
+  for (const std::string& name : QueryCameraPresets()) {
+    DriveOptions drive = DriveOptions::Query();
+    ApplyQueryCameraPreset(name, &drive);
+    EXPECT_NO_THROW(drive.camera.Check(name)) << name;
+  }
+}
+
 TEST(CameraPresets, FieldOfViewAndSize) {
   Camera pinhole = DriveOptions::Survey().camera;  // 800 px wide, fx 600
   EXPECT_NEAR(HorizontalFovDeg(pinhole), 2 * std::atan(400.0 / 600.0) * 180 / M_PI, 1e-9);

@@ -35,7 +35,7 @@ struct Camera {
 
   // Throws Error (prefixed with `where`) if a value is invalid: non-positive size or focal
   // length, non-finite value, principal point outside the image, a value beyond the sane bounds
-  // above.
+  // above, fy / fx outside [0.5, 2] or a radial distortion not invertible over the image (.cc).
   void Check(const std::string& where) const;
 
   // Projects a point in the camera frame (z > 0) to distorted pixel coordinates.
