@@ -100,16 +100,25 @@ fs::path Resolved(const std::string& path) {
   return fs::weakly_canonical(fs::absolute(path, ec), ec).lexically_normal();
 }
 
-// True if `path` lies inside the folder `folder` (after resolving both).
-bool IsInside(const std::string& path, const std::string& folder) {
+}  // namespace
+
+bool IsWithinFolder(const std::string& path, const std::string& folder) {
   const fs::path p = Resolved(path);
   const fs::path f = Resolved(folder);
   auto pi = p.begin();
-  for (auto fi = f.begin(); fi != f.end(); ++fi, ++pi) {
+  for (auto fi = f.begin(); fi != f.end(); ++fi) {
     if (fi->empty()) continue;  // the trailing "" of "dir/"
     if (pi == p.end() || *pi != *fi) return false;
+    ++pi;
   }
-  return pi != p.end();
+  return true;
+}
+
+namespace {
+
+// True if `path` lies inside the folder `folder`, not the folder itself (after resolving both).
+bool IsInside(const std::string& path, const std::string& folder) {
+  return IsWithinFolder(path, folder) && Resolved(path) != Resolved(folder);
 }
 
 }  // namespace

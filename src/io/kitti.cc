@@ -12,6 +12,7 @@
 
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/output_file.h"
 #include "epiloc/geo/rigid3.h"
 #include "epiloc/io/frame_reader.h"
 #include "epiloc/io/position_readers.h"
@@ -137,22 +138,6 @@ std::string DefaultName(const fs::path& raw_dir, int camera) {
   return "kitti_" + base + "_cam" + std::to_string(camera);
 }
 
-// True if `path` is `folder` or lies inside it, symbolic links and ".." resolved in both
-// (weakly_canonical: the part that exists).
-bool IsWithin(const fs::path& path, const fs::path& folder) {
-  std::error_code error;
-  const fs::path p = fs::weakly_canonical(fs::absolute(path, error), error).lexically_normal();
-  const fs::path f = fs::weakly_canonical(fs::absolute(folder, error), error).lexically_normal();
-  if (f == f.root_path()) return false;  // a drive folder right under "/": no calibration folder
-  auto pi = p.begin();
-  for (auto fi = f.begin(); fi != f.end(); ++fi) {
-    if (fi->empty()) continue;  // the trailing "" of "dir/"
-    if (pi == p.end() || *pi != *fi) return false;
-    ++pi;
-  }
-  return true;
-}
-
 }  // namespace
 
 void KittiImportOptions::Check() const {
@@ -219,7 +204,9 @@ Drive ImportKitti(const KittiImportOptions& options) {
   // the import once wrote into them.
   if (!options.out_dir.empty()) {
     for (const fs::path& input : {raw, calib_dir}) {
-      if (IsWithin(options.out_dir, input)) {
+      // A drive folder right under "/" has no calibration folder to protect.
+      if (input == input.root_path()) continue;
+      if (IsWithinFolder(options.out_dir, input.string())) {
         Throw(
             "KITTI import: the output folder {} is inside the KITTI input folder {}: refusing to "
             "write into an input",

@@ -14,6 +14,10 @@ namespace epiloc {
 // and hard links), else the same weakly canonical path. False for an empty path.
 bool SameFile(const std::string& a, const std::string& b);
 
+// True if `path` is the folder `folder` or lies inside it, symbolic links and ".." resolved in
+// both (weakly canonical: the part that exists).
+bool IsWithinFolder(const std::string& path, const std::string& folder);
+
 // A path given to a command and the option that gave it, e.g. {"--db", "route.sqlite"}.
 struct NamedPath {
   std::string option;
