@@ -52,7 +52,7 @@ KdForest::KdForest(int num_trees, uint32_t seed) : num_trees_(num_trees), seed_(
 }
 
 void KdForest::Build(const float* rows, size_t num_rows) {
-  EPILOC_CHECK(num_rows < std::numeric_limits<uint32_t>::max(),
+  EPILOC_CHECK(num_rows < static_cast<size_t>(std::numeric_limits<int>::max()),
                "kd-forest: {} rows are too many for one index", num_rows);
   points_.resize(num_rows);
   for (size_t i = 0; i < num_rows; ++i) points_[i] = rows + i * kDim;
@@ -68,19 +68,16 @@ void KdForest::Build(const float* rows, size_t num_rows) {
     for (size_t i = num_rows - 1; i > 0; --i) {
       std::swap(ids[i], ids[RandomBelow(rng, static_cast<int>(i + 1))]);
     }
-    tree.nodes.reserve(2 * num_rows);
+    tree.nodes.reserve(num_rows);
     tree.root = Divide(tree, ids.data(), static_cast<int>(num_rows), rng);
+    tree.has_root = true;
   }
 }
 
 int KdForest::Divide(Tree& tree, uint32_t* ids, int count, uint64_t& rng) {
+  if (count == 1) return ~static_cast<int>(ids[0]);
   const int index = static_cast<int>(tree.nodes.size());
   tree.nodes.emplace_back();
-  if (count == 1) {
-    tree.nodes[index].point = ids[0];
-    tree.nodes[index].row = points_[ids[0]];
-    return index;
-  }
   // Mean and variance per dimension over a sample of the node's points.
   const int sample = std::min(count, kSampleMean);
   std::array<float, kDim> mean{}, var{};
@@ -122,7 +119,7 @@ int KdForest::Divide(Tree& tree, uint32_t* ids, int count, uint64_t& rng) {
 }
 
 void KdForest::Add(const float* rows, size_t num_rows) {
-  EPILOC_CHECK(points_.size() + num_rows < std::numeric_limits<uint32_t>::max(),
+  EPILOC_CHECK(points_.size() + num_rows < static_cast<size_t>(std::numeric_limits<int>::max()),
                "kd-forest: {} rows are too many for one index", points_.size() + num_rows);
   if (trees_.empty()) trees_.assign(num_trees_, Tree());
   for (size_t i = 0; i < num_rows; ++i) {
@@ -135,20 +132,19 @@ void KdForest::Add(const float* rows, size_t num_rows) {
 
 void KdForest::Insert(Tree& tree, uint32_t id) {
   const float* p = points_[id];
-  if (tree.root < 0) {
-    tree.root = static_cast<int>(tree.nodes.size());
-    tree.nodes.emplace_back();
-    tree.nodes.back().point = id;
-    tree.nodes.back().row = p;
+  if (!tree.has_root) {
+    tree.root = ~static_cast<int>(id);
+    tree.has_root = true;
     return;
   }
-  int n = tree.root;
-  while (tree.nodes[n].child[0] >= 0) {
-    const Node& node = tree.nodes[n];
-    n = node.child[p[node.divfeat] < node.divval ? 0 : 1];
+  // Down to the leaf where p falls, remembering the slot that holds it.
+  int* slot = &tree.root;
+  while (*slot >= 0) {
+    Node& node = tree.nodes[*slot];
+    slot = &node.child[p[node.divfeat] < node.divval ? 0 : 1];
   }
   // The leaf becomes a split between its point and the new one along their widest difference.
-  const uint32_t old = tree.nodes[n].point;
+  const uint32_t old = static_cast<uint32_t>(~*slot);
   const float* q = points_[old];
   int divfeat = 0;
   float span = -1.0f;
@@ -157,19 +153,16 @@ void KdForest::Insert(Tree& tree, uint32_t id) {
     if (s > span) span = s, divfeat = d;
   }
   const float divval = 0.5f * (p[divfeat] + q[divfeat]);
-  const int a = static_cast<int>(tree.nodes.size());
-  tree.nodes.emplace_back();
-  tree.nodes.emplace_back();
   const bool new_left = p[divfeat] < divval;
-  tree.nodes[a].point = new_left ? id : old;
-  tree.nodes[a].row = new_left ? p : q;
-  tree.nodes[a + 1].point = new_left ? old : id;
-  tree.nodes[a + 1].row = new_left ? q : p;
-  Node& node = tree.nodes[n];
-  node.child[0] = a;
-  node.child[1] = a + 1;
+  Node node;
+  node.child[0] = ~static_cast<int>(new_left ? id : old);
+  node.child[1] = ~static_cast<int>(new_left ? old : id);
   node.divfeat = divfeat;
   node.divval = divval;
+  // `slot` may point into `nodes`: compute the index before the vector grows.
+  const int index = static_cast<int>(tree.nodes.size());
+  *slot = index;
+  tree.nodes.push_back(node);
 }
 
 void KdForest::Remove(size_t id) {
@@ -212,19 +205,19 @@ void KdForest::Search(const float* queries,
     int found = 0;
     int done = 0;
     // out_d[k-1] is the current k-th distance (infinite until k are found).
+    // `n` is a child value: an inner node index, or ~id for a leaf.
     auto search_from = [&](int t, int n, float mindist) {
       const Tree& tree = trees_[t];
       while (true) {
         if (mindist > out_d[k - 1]) return;
-        const Node& node = tree.nodes[n];
-        if (node.child[0] < 0) {
-          const uint32_t id = node.point;
+        if (n < 0) {
+          const uint32_t id = static_cast<uint32_t>(~n);
           if (checked[id] || removed_[id]) return;
           if (done >= checks && found == k) return;
           checked[id] = 1;
           touched.push_back(id);
           ++done;
-          const float d = SquaredDistance(q, node.row, out_d[k - 1]);
+          const float d = SquaredDistance(q, points_[id], out_d[k - 1]);
           if (d >= out_d[k - 1]) return;
           int pos = std::min(found, k - 1);
           while (pos > 0 && out_d[pos - 1] > d) {
@@ -237,6 +230,7 @@ void KdForest::Search(const float* queries,
           found = std::min(found + 1, k);
           return;
         }
+        const Node& node = tree.nodes[n];
         const float diff = q[node.divfeat] - node.divval;
         const int near = node.child[diff < 0 ? 0 : 1];
         const int far = node.child[diff < 0 ? 1 : 0];
@@ -246,7 +240,7 @@ void KdForest::Search(const float* queries,
       }
     };
     for (int t = 0; t < static_cast<int>(trees_.size()); ++t) {
-      if (trees_[t].root >= 0) search_from(t, trees_[t].root, 0.0f);
+      if (trees_[t].has_root) search_from(t, trees_[t].root, 0.0f);
     }
     while (!heap.empty() && (done < checks || found < k)) {
       std::pop_heap(heap.begin(), heap.end(), std::greater<Branch>());

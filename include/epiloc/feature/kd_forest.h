@@ -51,18 +51,21 @@ class KdForest {
               float* distances) const;
 
  private:
+  // Inner nodes only: a child that is a single point is stored in the parent as ~id (negative),
+  // so reaching a leaf costs no node load (the search is bound by memory latency, and each of its
+  // `checks` ends at a leaf). 16 bytes: four nodes per cache line.
   struct Node {
-    int child[2] = {-1, -1};  // both -1 for a leaf
+    int child[2] = {-1, -1};  // >= 0: inner node index; < 0: leaf ~id
     int divfeat = 0;
     float divval = 0.0f;
-    uint32_t point = 0;          // leaf: point id
-    const float* row = nullptr;  // leaf: the point's row (saves a lookup per distance)
   };
   struct Tree {
     std::vector<Node> nodes;
-    int root = -1;
+    int root = 0;  // as a child; meaningful when has_root
+    bool has_root = false;
   };
 
+  // Returns the subtree as a child value (inner node index, or ~id for a single point).
   int Divide(Tree& tree, uint32_t* ids, int count, uint64_t& rng);
   void Insert(Tree& tree, uint32_t id);
 
