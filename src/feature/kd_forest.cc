@@ -91,11 +91,25 @@ int KdForest::Divide(Tree& tree, uint32_t* ids, int count, uint64_t& rng) {
     for (int d = 0; d < kDim; ++d) var[d] += (p[d] - mean[d]) * (p[d] - mean[d]);
   }
   // One of the dimensions of highest variance, at random: the trees differ where it matters least.
-  std::array<int, kDim> order;
-  std::iota(order.begin(), order.end(), 0);
-  std::partial_sort(order.begin(), order.begin() + kRandomDims, order.end(),
-                    [&](int a, int b) { return var[a] > var[b] || (var[a] == var[b] && a < b); });
-  const int divfeat = order[RandomBelow(rng, kRandomDims)];
+  // The kRandomDims highest, in that order (ties: lower dimension first), by insertion in one
+  // pass: a partial sort of all 128 cost as much as the rest of the node.
+  std::array<int, kRandomDims> top;
+  std::array<float, kRandomDims> top_var;
+  int num_top = 0;
+  for (int d = 0; d < kDim; ++d) {
+    const float v = var[d];
+    if (num_top == kRandomDims && !(v > top_var[kRandomDims - 1])) continue;
+    int pos = num_top;
+    while (pos > 0 && v > top_var[pos - 1]) --pos;  // d > top[*]: ties stay behind
+    for (int i = std::min(num_top, kRandomDims - 1); i > pos; --i) {
+      top[i] = top[i - 1];
+      top_var[i] = top_var[i - 1];
+    }
+    top[pos] = d;
+    top_var[pos] = v;
+    num_top = std::min(num_top + 1, kRandomDims);
+  }
+  const int divfeat = top[RandomBelow(rng, kRandomDims)];
   const float divval = mean[divfeat];
   // Split at the mean; ties go to whichever side balances the tree (FLANN's planeSplit).
   uint32_t* end = ids + count;
