@@ -53,9 +53,17 @@ int RunImportKitti(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   app.add_option("--seed", options.seed, "Seed of the simulated GPS")->capture_default_str();
+  std::string oxts_positions = "fused";
+  app.add_option("--oxts-positions", oxts_positions,
+                 "fused: OXTS positions made consistent with the unit's velocity, each weighted "
+                 "by its reported accuracy; raw: as recorded")
+      ->check(CLI::IsMember({"fused", "raw"}))
+      ->capture_default_str();
   app.add_option("--out", options.out_dir, "Drive directory to write")->required();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
   if (!frames.empty()) ParseFrameRange(frames, options);
+  options.oxts_positions = oxts_positions == "raw" ? KittiImportOptions::OxtsPositions::kRaw
+                                                   : KittiImportOptions::OxtsPositions::kFused;
 
   const Drive drive = ImportKitti(options);
   std::printf("%s: drive '%s' with %zu frames, %zu GNSS samples, %zu LiDAR scans\n",

@@ -8,6 +8,8 @@
 #include <regex>
 #include <sstream>
 
+#include <Eigen/SparseCholesky>
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "epiloc/core/csv.h"
@@ -194,6 +196,72 @@ std::vector<OxtsRecord> ReadKittiOxts(const std::string& oxts_dir) {
   return records;
 }
 
+FusedOxts FuseOxtsPositions(const std::vector<OxtsRecord>& records) {
+  // dataformat.txt: vn 6, ve 7, vu 10, pos_accuracy 23, vel_accuracy 24.
+  constexpr int kVn = 6, kVe = 7, kVu = 10, kPosAccuracy = 23, kVelAccuracy = 24;
+  // Floors: an accuracy reported below these is not believed (1 cm: an RTK fix; 5 mm/s).
+  constexpr double kMinPositionSigmaM = 0.01, kMinVelocitySigmaMps = 0.005;
+  FusedOxts out;
+  for (const OxtsRecord& r : records) out.positions.push_back(r.position);
+  const int n = static_cast<int>(records.size());
+  if (n < 2) {
+    out.why_not = "fewer than two records";
+    return out;
+  }
+  for (const OxtsRecord& r : records) {
+    const double a = r.values[kPosAccuracy], b = r.values[kVelAccuracy];
+    if (!(std::isfinite(a) && a > 0 && std::isfinite(b) && b > 0)) {
+      out.why_not = fmt::format("record {} reports no position and velocity accuracy", r.frame);
+      return out;
+    }
+  }
+  const EnuFrame enu(records.front().position);
+  Eigen::MatrixXd recorded(n, 3), rhs = Eigen::MatrixXd::Zero(n, 3);
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int i = 0; i < n; ++i) {
+    recorded.row(i) = enu.ToEnu(records[i].position).transpose();
+    const double a = std::max(records[i].values[kPosAccuracy], kMinPositionSigmaM);
+    entries.emplace_back(i, i, 1.0 / (a * a));
+    rhs.row(i) += recorded.row(i) / (a * a);
+  }
+  const auto velocity = [&](int i) {
+    const OxtsRecord& r = records[i];
+    return Eigen::Vector3d(
+        enu.EnuFromLocalEnu(r.position) *
+        Eigen::Vector3d(r.values[kVe], r.values[kVn], r.values[kVu]));
+  };
+  for (int i = 0; i + 1 < n; ++i) {
+    const double dt = records[i + 1].timestamp_s - records[i].timestamp_s;
+    const Eigen::Vector3d step = 0.5 * (velocity(i) + velocity(i + 1)) * dt;
+    const double b =
+        std::max(0.5 * (records[i].values[kVelAccuracy] + records[i + 1].values[kVelAccuracy]),
+                 kMinVelocitySigmaMps) *
+        dt;
+    const double w = 1.0 / (b * b);
+    entries.emplace_back(i, i, w);
+    entries.emplace_back(i + 1, i + 1, w);
+    entries.emplace_back(i, i + 1, -w);
+    entries.emplace_back(i + 1, i, -w);
+    rhs.row(i) -= w * step.transpose();
+    rhs.row(i + 1) += w * step.transpose();
+  }
+  Eigen::SparseMatrix<double> normal(n, n);
+  normal.setFromTriplets(entries.begin(), entries.end());
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
+  if (solver.info() != Eigen::Success) {
+    out.why_not = "the least-squares system could not be solved";
+    return out;
+  }
+  const Eigen::MatrixXd fused = solver.solve(rhs);
+  for (int i = 0; i < n; ++i) {
+    out.positions[i] = enu.ToGeodetic(fused.row(i).transpose());
+    out.max_correction_m = std::max(
+        out.max_correction_m, (fused.row(i) - recorded.row(i)).head<2>().norm());
+  }
+  out.fused = true;
+  return out;
+}
+
 Drive ImportKitti(const KittiImportOptions& options) {
   options.Check();
   fs::path raw = fs::absolute(options.raw_drive_dir).lexically_normal();
@@ -269,7 +337,18 @@ Drive ImportKitti(const KittiImportOptions& options) {
   FrameReader(drive).ReadGrey(0);  // the images must have the rectified size
 
   // Ground truth: the camera track at the OXTS samples of the span.
-  const std::vector<OxtsRecord> oxts = ReadKittiOxts((raw / "oxts").string());
+  std::vector<OxtsRecord> oxts = ReadKittiOxts((raw / "oxts").string());
+  if (options.oxts_positions == KittiImportOptions::OxtsPositions::kFused) {
+    const FusedOxts fused = FuseOxtsPositions(oxts);
+    if (fused.fused) {
+      for (size_t i = 0; i < oxts.size(); ++i) oxts[i].position = fused.positions[i];
+      spdlog::info("{}: OXTS positions fused with the unit's velocity (moved by at most {:.2f} m)",
+                   (raw / "oxts").string(), fused.max_correction_m);
+    } else {
+      spdlog::warn("{}: OXTS positions imported as recorded: {}", (raw / "oxts").string(),
+                   fused.why_not);
+    }
+  }
   PositionTrack imu_track;  // orientation field holds enu_from_imu
   PositionTrack truth;
   truth.source = (raw / "oxts").string();

@@ -154,6 +154,74 @@ class KittiRealData : public ::testing::Test {
   }
 };
 
+// A vehicle driving north at 10 m/s, sampled every 0.1 s, whose recorded positions squeeze
+// samples 10-19 (0.9 m steps) and then keep the 1 m lag: the velocity is exact.
+std::vector<OxtsRecord> SqueezedRecords(double position_accuracy, double velocity_accuracy) {
+  std::vector<OxtsRecord> records;
+  const EnuFrame enu({49.0, 8.4, 100.0});
+  double recorded_north = 0;
+  for (int i = 0; i < 30; ++i) {
+    if (i > 0) recorded_north += (i >= 10 && i < 20) ? 0.9 : 1.0;
+    OxtsRecord r;
+    r.frame = i;
+    r.timestamp_s = 1e9 + 0.1 * i;
+    r.position = enu.ToGeodetic(Eigen::Vector3d(0, recorded_north, 0));
+    r.values.assign(30, 0.0);
+    r.values[6] = 10.0;  // vn
+    r.values[23] = position_accuracy;
+    r.values[24] = velocity_accuracy;
+    records.push_back(r);
+  }
+  return records;
+}
+
+TEST(KittiOxts, FusedPositionsFollowTheVelocity) {
+  const std::vector<OxtsRecord> records = SqueezedRecords(0.5, 0.02);
+  const FusedOxts fused = FuseOxtsPositions(records);
+  ASSERT_TRUE(fused.fused) << fused.why_not;
+  ASSERT_EQ(fused.positions.size(), records.size());
+  const EnuFrame enu(records.front().position);
+  // Equal position weights and an exact velocity: the track is the true one (i * 1 m) moved by
+  // the mean of the recorded positions' errors, which are 0 up to sample 9, then -0.1 ... -1 m.
+  double mean_error = 0;
+  for (size_t i = 0; i < records.size(); ++i) {
+    mean_error += enu.ToEnu(records[i].position).y() - static_cast<double>(i);
+  }
+  mean_error /= static_cast<double>(records.size());
+  double max_step_error = 0, max_offset_error = 0;
+  for (size_t i = 0; i < records.size(); ++i) {
+    const Eigen::Vector3d p = enu.ToEnu(fused.positions[i]);
+    max_offset_error =
+        std::max(max_offset_error, std::abs(p.y() - static_cast<double>(i) - mean_error));
+    EXPECT_NEAR(p.x(), 0.0, 1e-6);
+    if (i > 0) {
+      const double step = p.y() - enu.ToEnu(fused.positions[i - 1]).y();
+      max_step_error = std::max(max_step_error, std::abs(step - 1.0));
+    }
+  }
+  // The velocity's sigma per step (2 mm) against the positions' (0.5 m): the steps keep to 1 m.
+  EXPECT_LT(max_step_error, 0.005);
+  EXPECT_LT(max_offset_error, 0.02);
+  // The first samples move by -mean_error, the last (recorded 1 m behind) by 1 + mean_error.
+  EXPECT_NEAR(fused.max_correction_m, std::max(-mean_error, 1.0 + mean_error), 0.02);
+}
+
+TEST(KittiOxts, RecordsWithoutAccuraciesStayAsRecorded) {
+  const std::vector<OxtsRecord> records = SqueezedRecords(0.0, 0.02);
+  const FusedOxts fused = FuseOxtsPositions(records);
+  EXPECT_FALSE(fused.fused);
+  EXPECT_NE(fused.why_not.find("record 0"), std::string::npos) << fused.why_not;
+  for (size_t i = 0; i < records.size(); ++i) {
+    EXPECT_EQ(fused.positions[i].lat_deg, records[i].position.lat_deg);
+    EXPECT_EQ(fused.positions[i].alt_m, records[i].position.alt_m);
+  }
+  EXPECT_FALSE(FuseOxtsPositions({records.front()}).fused);
+  // MiniKitti's records carry zeros: imported as recorded, whatever the option says.
+  MiniKitti kitti;
+  const Drive drive = ImportKitti(kitti.Options(0));
+  EXPECT_NEAR(drive.ground_truth->samples[2].position.lat_deg, 49.00002, 1e-12);
+}
+
 TEST_F(KittiRealData, ImportsCameraZeroAndOne) {
   TempDir out;
   KittiImportOptions options;
@@ -220,6 +288,66 @@ TEST_F(KittiRealData, ImportsCameraZeroAndOne) {
       "%.4f m), optical axis vs travel: max %.2f deg, median %.2f deg\n",
       length, offset_sum / truth0.samples.size(), max_offset_error, max_axis_angle,
       median_axis_angle);
+}
+
+// The imported camera track against the INS velocity: how far the optical axis points from the
+// direction of travel (over +-1 sample, 0.3-0.7 m), median and max in degrees, and the steps'
+// lengths over the open square (frames 3-15, 49-71) relative to speed * dt.
+struct TrackConsistency {
+  double median_axis_deg = 0, max_axis_deg = 0;
+  double min_step_ratio = 1e9, max_step_ratio = 0;
+};
+TrackConsistency Consistency(const Drive& drive) {
+  const std::vector<OxtsRecord> oxts = ReadKittiOxts(kRawDrive + "/oxts");
+  const PositionTrack& truth = *drive.ground_truth;
+  const EnuFrame frame(truth.samples.front().position);
+  std::vector<double> angles;
+  TrackConsistency c;
+  for (size_t i = 1; i + 1 < truth.samples.size(); ++i) {
+    const Eigen::Vector3d travel =
+        Enu(frame, truth.samples[i + 1]) - Enu(frame, truth.samples[i - 1]);
+    const Eigen::Vector3d axis = *truth.samples[i].enu_from_cam * Eigen::Vector3d::UnitZ();
+    angles.push_back(std::acos(std::min(1.0, axis.dot(travel.normalized()))) * 180 / M_PI);
+    const frame_t f = truth.samples[i].frame;
+    if ((f >= 3 && f <= 15) || (f >= 49 && f <= 71)) {
+      const double step = (Enu(frame, truth.samples[i]) - Enu(frame, truth.samples[i - 1])).norm();
+      const double speed = 0.5 * (std::hypot(oxts[i].values[6], oxts[i].values[7]) +
+                                  std::hypot(oxts[i - 1].values[6], oxts[i - 1].values[7]));
+      const double ratio = step / (speed * (oxts[i].timestamp_s - oxts[i - 1].timestamp_s));
+      c.min_step_ratio = std::min(c.min_step_ratio, ratio);
+      c.max_step_ratio = std::max(c.max_step_ratio, ratio);
+    }
+  }
+  std::sort(angles.begin(), angles.end());
+  c.median_axis_deg = angles[angles.size() / 2];
+  c.max_axis_deg = angles.back();
+  return c;
+}
+
+TEST_F(KittiRealData, FusedPositionsAgreeWithTheVelocityAndTheCamera) {
+  KittiImportOptions options;
+  options.raw_drive_dir = kRawDrive;
+  options.oxts_positions = KittiImportOptions::OxtsPositions::kRaw;
+  const TrackConsistency raw = Consistency(ImportKitti(options));
+  options.oxts_positions = KittiImportOptions::OxtsPositions::kFused;
+  const Drive drive = ImportKitti(options);
+  const TrackConsistency fused = Consistency(drive);
+  std::printf(
+      "[ figures  ] camera axis vs travel over one sample: raw median %.2f max %.2f deg, fused "
+      "median %.2f max %.2f deg; square step / (speed dt): raw %.3f..%.3f, fused %.3f..%.3f\n",
+      raw.median_axis_deg, raw.max_axis_deg, fused.median_axis_deg, fused.max_axis_deg,
+      raw.min_step_ratio, raw.max_step_ratio, fused.min_step_ratio, fused.max_step_ratio);
+  // Recorded: steps squeezed to 81-96 % of the velocity's in the square.
+  EXPECT_LT(raw.min_step_ratio, 0.85);
+  EXPECT_GT(fused.min_step_ratio, 0.97);
+  EXPECT_LT(fused.max_step_ratio, 1.03);
+  // The rest of the median is the camera's mounting and the car's slip, not the track.
+  EXPECT_LT(fused.median_axis_deg, 0.75 * raw.median_axis_deg);
+  EXPECT_LT(fused.max_axis_deg, 0.5 * raw.max_axis_deg);
+  // Still the GNSS's track: no position moved by more than a few of its reported sigmas (0.3-0.5 m).
+  const FusedOxts moved = FuseOxtsPositions(ReadKittiOxts(kRawDrive + "/oxts"));
+  ASSERT_TRUE(moved.fused);
+  EXPECT_LT(moved.max_correction_m, 2.5);
 }
 
 TEST_F(KittiRealData, SimulatesGnssDeterministically) {
