@@ -215,37 +215,51 @@ FusedOxts FuseOxtsPositions(const std::vector<OxtsRecord>& records) {
       return out;
     }
   }
+  // Unknowns per axis: positions p_0..p_(n-1), then velocity errors e_0..e_(n-1). Every row is a
+  // weighted residual; the normal equations are assembled from them. The same matrix serves the
+  // three axes (the weights do not depend on the axis).
   const EnuFrame enu(records.front().position);
-  Eigen::MatrixXd recorded(n, 3), rhs = Eigen::MatrixXd::Zero(n, 3);
+  Eigen::MatrixXd recorded(n, 3), rhs = Eigen::MatrixXd::Zero(2 * n, 3);
   std::vector<Eigen::Triplet<double>> entries;
+  // Adds the residual sum_k c_k x_(j_k) - y, weight 1/sigma^2, to the normal equations.
+  const auto add = [&](const std::vector<std::pair<int, double>>& terms, const Eigen::RowVector3d& y,
+                       double sigma) {
+    const double w = 1.0 / (sigma * sigma);
+    for (const auto& [j, cj] : terms) {
+      for (const auto& [k, ck] : terms) entries.emplace_back(j, k, w * cj * ck);
+      rhs.row(j) += w * cj * y;
+    }
+  };
+  const auto velocity_sigma = [&](int i) {
+    return std::max(records[i].values[kVelAccuracy], kMinVelocitySigmaMps);
+  };
   for (int i = 0; i < n; ++i) {
     recorded.row(i) = enu.ToEnu(records[i].position).transpose();
-    const double a = std::max(records[i].values[kPosAccuracy], kMinPositionSigmaM);
-    entries.emplace_back(i, i, 1.0 / (a * a));
-    rhs.row(i) += recorded.row(i) / (a * a);
+    add({{i, 1.0}}, recorded.row(i), std::max(records[i].values[kPosAccuracy], kMinPositionSigmaM));
   }
   const auto velocity = [&](int i) {
     const OxtsRecord& r = records[i];
-    return Eigen::Vector3d(
-        enu.EnuFromLocalEnu(r.position) *
-        Eigen::Vector3d(r.values[kVe], r.values[kVn], r.values[kVu]));
+    return Eigen::Vector3d(enu.EnuFromLocalEnu(r.position) *
+                           Eigen::Vector3d(r.values[kVe], r.values[kVn], r.values[kVu]));
   };
+  // The velocity's error e_i is slow (a GNSS/INS solution drifts over seconds, it does not jump
+  // between samples): a first-order Gauss-Markov process with the reported accuracy as its
+  // steady-state sigma and time constant kVelocityErrorTimeS; what it leaves of a step is
+  // measured to kMinVelocitySigmaMps. Over a few samples the steps follow the velocity; over
+  // tens of seconds the positions set the shape.
+  constexpr double kVelocityErrorTimeS = 10.0;
+  add({{n, 1.0}}, Eigen::RowVector3d::Zero(), velocity_sigma(0));
   for (int i = 0; i + 1 < n; ++i) {
     const double dt = records[i + 1].timestamp_s - records[i].timestamp_s;
-    const Eigen::Vector3d step = 0.5 * (velocity(i) + velocity(i + 1)) * dt;
-    const double b =
-        std::max(0.5 * (records[i].values[kVelAccuracy] + records[i + 1].values[kVelAccuracy]),
-                 kMinVelocitySigmaMps) *
-        dt;
-    const double w = 1.0 / (b * b);
-    entries.emplace_back(i, i, w);
-    entries.emplace_back(i + 1, i + 1, w);
-    entries.emplace_back(i, i + 1, -w);
-    entries.emplace_back(i + 1, i, -w);
-    rhs.row(i) -= w * step.transpose();
-    rhs.row(i + 1) += w * step.transpose();
+    const Eigen::RowVector3d step = (0.5 * (velocity(i) + velocity(i + 1)) * dt).transpose();
+    // p_(i+1) - p_i - (v_i + e_i) dt = 0
+    add({{i + 1, 1.0}, {i, -1.0}, {n + i, -dt}}, step, kMinVelocitySigmaMps * dt);
+    // e_(i+1) - phi e_i = 0, sigma_e sqrt(1 - phi^2)
+    const double phi = std::exp(-dt / kVelocityErrorTimeS);
+    add({{n + i + 1, 1.0}, {n + i, -phi}}, Eigen::RowVector3d::Zero(),
+        std::max(velocity_sigma(i + 1) * std::sqrt(1.0 - phi * phi), 1e-6));
   }
-  Eigen::SparseMatrix<double> normal(n, n);
+  Eigen::SparseMatrix<double> normal(2 * n, 2 * n);
   normal.setFromTriplets(entries.begin(), entries.end());
   const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
   if (solver.info() != Eigen::Success) {
@@ -255,8 +269,8 @@ FusedOxts FuseOxtsPositions(const std::vector<OxtsRecord>& records) {
   const Eigen::MatrixXd fused = solver.solve(rhs);
   for (int i = 0; i < n; ++i) {
     out.positions[i] = enu.ToGeodetic(fused.row(i).transpose());
-    out.max_correction_m = std::max(
-        out.max_correction_m, (fused.row(i) - recorded.row(i)).head<2>().norm());
+    out.max_correction_m =
+        std::max(out.max_correction_m, (fused.row(i) - recorded.row(i)).head<2>().norm());
   }
   out.fused = true;
   return out;

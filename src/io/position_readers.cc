@@ -114,11 +114,14 @@ void WritePositionCsv(const PositionTrack& track, const std::string& path) {
 PositionTrack ReadKittiOxtsTrack(const std::string& oxts_dir) {
   PositionTrack track;
   track.source = oxts_dir;
-  for (const auto& record : ReadKittiOxts(oxts_dir)) {
+  const std::vector<OxtsRecord> records = ReadKittiOxts(oxts_dir);
+  // The same positions ImportKitti uses by default: consistent with the unit's velocity.
+  const FusedOxts fused = FuseOxtsPositions(records);
+  for (size_t i = 0; i < records.size(); ++i) {
     PositionSample sample;
-    sample.timestamp_s = record.timestamp_s;
-    sample.position = record.position;
-    sample.frame = record.frame;
+    sample.timestamp_s = records[i].timestamp_s;
+    sample.position = fused.positions[i];
+    sample.frame = records[i].frame;
     track.samples.push_back(sample);
   }
   return track;

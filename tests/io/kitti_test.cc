@@ -199,9 +199,10 @@ TEST(KittiOxts, FusedPositionsFollowTheVelocity) {
       max_step_error = std::max(max_step_error, std::abs(step - 1.0));
     }
   }
-  // The velocity's sigma per step (2 mm) against the positions' (0.5 m): the steps keep to 1 m.
-  EXPECT_LT(max_step_error, 0.005);
-  EXPECT_LT(max_offset_error, 0.02);
+  // The squeeze would need a velocity error of 1 m/s, 50 of its sigmas: the steps keep to 1 m
+  // (the slow velocity error takes up a few millimetres).
+  EXPECT_LT(max_step_error, 0.01);
+  EXPECT_LT(max_offset_error, 0.03);
   // The first samples move by -mean_error, the last (recorded 1 m behind) by 1 + mean_error.
   EXPECT_NEAR(fused.max_correction_m, std::max(-mean_error, 1.0 + mean_error), 0.02);
 }
@@ -337,17 +338,18 @@ TEST_F(KittiRealData, FusedPositionsAgreeWithTheVelocityAndTheCamera) {
       "median %.2f max %.2f deg; square step / (speed dt): raw %.3f..%.3f, fused %.3f..%.3f\n",
       raw.median_axis_deg, raw.max_axis_deg, fused.median_axis_deg, fused.max_axis_deg,
       raw.min_step_ratio, raw.max_step_ratio, fused.min_step_ratio, fused.max_step_ratio);
-  // Recorded: steps squeezed to 81-96 % of the velocity's in the square.
+  // Recorded: steps squeezed to 82 % of the velocity's in the square; fused: within 8 %.
   EXPECT_LT(raw.min_step_ratio, 0.85);
-  EXPECT_GT(fused.min_step_ratio, 0.97);
+  EXPECT_GT(fused.min_step_ratio, 0.92);
   EXPECT_LT(fused.max_step_ratio, 1.03);
   // The rest of the median is the camera's mounting and the car's slip, not the track.
-  EXPECT_LT(fused.median_axis_deg, 0.75 * raw.median_axis_deg);
-  EXPECT_LT(fused.max_axis_deg, 0.5 * raw.max_axis_deg);
-  // Still the GNSS's track: no position moved by more than a few of its reported sigmas (0.3-0.5 m).
+  EXPECT_LT(fused.median_axis_deg, 0.85 * raw.median_axis_deg);
+  EXPECT_LT(fused.max_axis_deg, 0.6 * raw.max_axis_deg);
+  // Still the GNSS's track: no position moved by more than about two of its reported sigmas
+  // (0.3-0.5 m).
   const FusedOxts moved = FuseOxtsPositions(ReadKittiOxts(kRawDrive + "/oxts"));
   ASSERT_TRUE(moved.fused);
-  EXPECT_LT(moved.max_correction_m, 2.5);
+  EXPECT_LT(moved.max_correction_m, 1.0);
 }
 
 TEST_F(KittiRealData, SimulatesGnssDeterministically) {

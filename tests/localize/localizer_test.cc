@@ -122,7 +122,9 @@ TEST(Localizer, SyntheticStreetNoiseFreeQuery) {
     const double offset = std::stod(with_row.extra[cross]);
     const double s1 = std::stod(with_row.extra[sigma_h]);
     const double s0 = std::stod(without_row.extra[sigma_h]);
-    EXPECT_NEAR(s1 * s1 - s0 * s0, std::pow(0.2 * offset, 2), 2e-4 * (s1 + s0)) << i;
+    EXPECT_NEAR(s1 * s1 - s0 * s0, std::pow(options.viewpoint_sigma_ratio * offset, 2),
+                2e-4 * (s1 + s0))
+        << i;
     largest_offset = std::max(largest_offset, std::abs(offset));
     ++compared;
   }
@@ -187,9 +189,9 @@ TEST(Localizer, KittiDevelopmentScenario) {
   EXPECT_LE(pnp->horizontal.mean_abs, 0.09);
   EXPECT_LE(pnp->rotation.mean_abs, 0.30);
   EXPECT_LT(pnp->horizontal.mean_abs, 0.5 * online->horizontal.mean_abs);
-  // Horizontal calibration (issue 16): camera 1 is 0.54 m beside the survey's line, where the
-  // camera-0 map holds 0.15-0.35 m across (the open square); with the viewpoint term 96.1 % of
-  // the poses lie within 2 sigma_horizontal_m (90.9 % without it).
+  // Horizontal calibration (issue 16): camera 1 is 0.54 m beside the survey's line; the map pulls
+  // it 2-3 cm toward that line (with the raw OXTS positions 0.15-0.35 m in the open square, and
+  // 90.9 % within 2 sigma without a viewpoint term); 100 % within 2 sigma_horizontal_m.
   std::cout << "pnp within 2 sigma: along " << pnp->along_calibration.share_within_2_sigma
             << ", horizontal " << pnp->horizontal_calibration.share_within_2_sigma << "\n";
   EXPECT_GE(pnp->horizontal_calibration.share_within_2_sigma, 0.93);

@@ -146,9 +146,9 @@ TEST(VisualOdometry, SyntheticDriveKeepsItsShape) {
 
 // The shared KITTI drive, camera 1 (1242x375, 154 frames, 69 m): drift after Sim(3) alignment,
 // the target <= 2 % of the distance at every pose. Measured with the global BA and 1.5 px
-// inlier threshold: rms 0.639 m (0.92 %), max 1.146 m (1.66 %), 11-16 frames/s on 2 busy cores
-// (global BA 0.8 s). Part of it is the OXTS ground truth's own: its positions disagree with its
-// integrated velocities by 0.7 m after the same alignment.
+// inlier threshold against the OXTS positions fused with the unit's velocity (import-kitti's
+// default): rms 0.561 m (0.82 %), max 1.256 m (1.83 %); against the raw positions rms 0.639 m
+// (0.92 %), max 1.146 m (1.66 %). 11-20 frames/s on 2 busy cores (global BA 0.8 s).
 TEST(VisualOdometry, KittiCamera1Drift) {
   const fs::path raw =
       fs::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
@@ -166,7 +166,7 @@ TEST(VisualOdometry, KittiCamera1Drift) {
   EXPECT_EQ(result.summary.lost, 0);
   EXPECT_GE(result.summary.posed, result.summary.frames * 9 / 10);
   EXPECT_GT(a.distance_m, 50.0);
-  EXPECT_LE(a.max_percent(), 1.8);
+  EXPECT_LE(a.max_percent(), 2.0);
   EXPECT_LE(a.rms_percent(), 1.1);
 }
 

@@ -64,9 +64,10 @@ PositionTrack ReadNmea(const std::string& path,
                        NmeaStats* stats = nullptr);
 
 // KITTI OXTS folder `oxts_dir` (data/NNNNNNNNNN.txt, 30 values each, and timestamps.txt whose line
-// n is the time of file n): the OXTS unit's positions with `frame` = file number and no
-// orientation (the camera's mounting is not part of the folder; ImportKitti in kitti.h derives
-// camera positions and orientations from the calibration).
+// n is the time of file n): the OXTS unit's positions, fused with its velocity as ImportKitti does
+// by default (FuseOxtsPositions in kitti.h; as recorded when the records carry no accuracies),
+// with `frame` = file number and no orientation (the camera's mounting is not part of the folder;
+// ImportKitti derives camera positions and orientations from the calibration).
 PositionTrack ReadKittiOxtsTrack(const std::string& oxts_dir);
 
 // Reads `path` in `format`. `origin` is used by CSV local x/y/z positions, `nmea_date` by NMEA.
