@@ -214,6 +214,13 @@ FusedOxts FuseOxtsPositions(const std::vector<OxtsRecord>& records) {
       out.why_not = fmt::format("record {} reports no position and velocity accuracy", r.frame);
       return out;
     }
+    // A road vehicle's unit: a velocity beyond 1000 m/s is a broken record, not a fast car.
+    for (const int k : {kVn, kVe, kVu}) {
+      if (!(std::abs(r.values[k]) <= 1000.0)) {
+        out.why_not = fmt::format("record {} has velocity {}", r.frame, r.values[k]);
+        return out;
+      }
+    }
   }
   // Unknowns per axis: positions p_0..p_(n-1), then velocity errors e_0..e_(n-1). Every row is a
   // weighted residual; the normal equations are assembled from them. The same matrix serves the
@@ -267,8 +274,19 @@ FusedOxts FuseOxtsPositions(const std::vector<OxtsRecord>& records) {
     return out;
   }
   const Eigen::MatrixXd fused = solver.solve(rhs);
+  if (!fused.allFinite()) {
+    out.why_not = "the least-squares solution is not finite";
+    return out;
+  }
   for (int i = 0; i < n; ++i) {
-    out.positions[i] = enu.ToGeodetic(fused.row(i).transpose());
+    const Geodetic position = enu.ToGeodetic(fused.row(i).transpose());
+    if (!IsValidGeodetic(position)) {
+      out.why_not = fmt::format("record {} would move out of range", records[i].frame);
+      out.max_correction_m = 0.0;
+      for (int j = 0; j < n; ++j) out.positions[j] = records[j].position;
+      return out;
+    }
+    out.positions[i] = position;
     out.max_correction_m =
         std::max(out.max_correction_m, (fused.row(i) - recorded.row(i)).head<2>().norm());
   }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -217,6 +218,11 @@ TEST(KittiOxts, RecordsWithoutAccuraciesStayAsRecorded) {
     EXPECT_EQ(fused.positions[i].alt_m, records[i].position.alt_m);
   }
   EXPECT_FALSE(FuseOxtsPositions({records.front()}).fused);
+  std::vector<OxtsRecord> broken = SqueezedRecords(0.5, 0.02);
+  broken[7].values[6] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(FuseOxtsPositions(broken).why_not.find("record 7"), std::string::npos);
+  broken[7].values[6] = 1e300;
+  EXPECT_FALSE(FuseOxtsPositions(broken).fused);
   // MiniKitti's records carry zeros: imported as recorded, whatever the option says.
   MiniKitti kitti;
   const Drive drive = ImportKitti(kitti.Options(0));
