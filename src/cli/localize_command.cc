@@ -285,9 +285,11 @@ int RunLocalize(int argc, char** argv) {
     const StageSeconds& st = run.stages;
     std::fprintf(summary,
                  "%s: per frame by stage [ms]: read %.1f, undistort %.1f, sift %.1f, retrieval "
-                 "%.1f | match %.1f, geometry %.1f, refine %.1f, other %.1f\n",
+                 "%.1f | window %.1f (%.1f of it between frames), match %.1f, geometry %.1f, "
+                 "refine %.1f, other %.1f\n",
                  source->name().c_str(), 1e3 * st.read / n, 1e3 * st.undistort / n,
-                 1e3 * st.sift / n, 1e3 * st.retrieval / n, 1e3 * st.match / n,
+                 1e3 * st.sift / n, 1e3 * st.retrieval / n, 1e3 * st.window / n,
+                 1e3 * run.maintenance_seconds / n, 1e3 * st.match / n,
                  1e3 * st.geometry / n, 1e3 * st.refine / n, 1e3 * st.other / n);
   }
   if (run.refined) {

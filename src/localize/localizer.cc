@@ -287,6 +287,8 @@ Localizer::Impl::Impl(const std::string& path, const Camera& camera, const Local
                  path);
   }
   pair_options.with_points = refine;
+  // The window index's rebuilds wait for Maintain() (or the next frame): off the latency.
+  pair_options.window.defer_rebuilds = true;
   evaluator = std::make_unique<PairEvaluator>(db, db_frames, pair_options);
 
   // Whole-route image retrieval places the vehicle without GPS and recovers a lost track.
@@ -312,7 +314,7 @@ std::vector<PairResult> Localizer::Impl::Evaluate(const PreparedFrame& query,
   std::vector<PairResult> r;
   if (options.pairs.window_matching) {
     r = evaluator->EvaluateWindow(camera, query.features, indices, options.num_threads,
-                                  &match_seconds, &geometry_seconds);
+                                  &match_seconds, &geometry_seconds, &window_seconds);
   } else {
     // Pair by pair, matching and geometry interleave: all of it counts as matching.
     const auto start = Clock::now();
@@ -536,6 +538,7 @@ StageSeconds& StageSeconds::operator+=(const StageSeconds& o) {
   undistort += o.undistort;
   sift += o.sift;
   retrieval += o.retrieval;
+  window += o.window;
   match += o.match;
   geometry += o.geometry;
   refine += o.refine;
@@ -579,6 +582,8 @@ PreparedFrame Localizer::Prepare(const QueryFrame& frame) const {
   return out;
 }
 
+void Localizer::Maintain() { impl_->evaluator->Maintain(); }
+
 FrameEstimate Localizer::Track(const PreparedFrame& query) {
   const auto start = Clock::now();
   Impl& impl = *impl_;
@@ -588,7 +593,7 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   est.timestamp_s = query.timestamp_s;
   est.extraction_seconds = query.extraction_seconds;
   est.stages = query.stages;
-  impl.match_seconds = impl.geometry_seconds = 0.0;
+  impl.match_seconds = impl.geometry_seconds = impl.window_seconds = 0.0;
   bool off_route = false;
   if (options.use_gps && query.gnss) {
     est.gnss = query.gnss;
@@ -748,11 +753,11 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   }
   if (options.diagnostics) est.pairs = std::move(pairs);
   est.tracking_seconds = Seconds(start);
+  est.stages.window = impl.window_seconds;
   est.stages.match = impl.match_seconds;
   est.stages.geometry = impl.geometry_seconds;
-  est.stages.other =
-      std::max(0.0, est.tracking_seconds - est.stages.match - est.stages.geometry -
-                        est.stages.refine);
+  est.stages.other = std::max(0.0, est.tracking_seconds - est.stages.window - est.stages.match -
+                                       est.stages.geometry - est.stages.refine);
   return est;
 }
 

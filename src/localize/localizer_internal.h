@@ -67,7 +67,7 @@ struct Localizer::Impl {
   std::unordered_map<int64_t, int> db_index_of_image;
 
   // The current frame's matching and geometry time (Evaluate adds to it; Track resets it).
-  double match_seconds = 0.0, geometry_seconds = 0.0;
+  double match_seconds = 0.0, geometry_seconds = 0.0, window_seconds = 0.0;
 
   // Tracking state: the filter is initialised while the vehicle is tracked.
   AlongTrackFilter filter;

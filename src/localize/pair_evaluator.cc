@@ -195,15 +195,19 @@ std::vector<PairResult> PairEvaluator::EvaluateWindow(const Camera& query_camera
                                                       const std::vector<int>& db_indices,
                                                       int num_threads,
                                                       double* match_seconds,
-                                                      double* geometry_seconds) {
+                                                      double* geometry_seconds,
+                                                      double* window_seconds) {
   if (db_indices.empty()) return {};
   using Clock = std::chrono::steady_clock;
-  const Clock::time_point start = Clock::now();
+  const Clock::time_point window_start = Clock::now();
+  Maintain();
   window_matcher_.SetWindow(db_indices, [this](int db_index) {
     const std::shared_ptr<const CachedFrame> frame = Load(db_index);
     // Aliasing pointer: keeps the cached frame alive while the matcher holds its descriptors.
     return std::shared_ptr<const FeatureDescriptors>(frame, &frame->descriptors);
   });
+  const Clock::time_point start = Clock::now();
+  if (window_seconds) *window_seconds += std::chrono::duration<double>(start - window_start).count();
   const std::unordered_map<int, std::vector<WindowMatch>> matches = window_matcher_.Match(
       query.descriptors, -1, options_.match.ratio, options_.match.num_checks, num_threads);
   const Clock::time_point matched = Clock::now();
@@ -222,6 +226,10 @@ std::vector<PairResult> PairEvaluator::EvaluateWindow(const Camera& query_camera
     *geometry_seconds += std::chrono::duration<double>(Clock::now() - matched).count();
   }
   return results;
+}
+
+void PairEvaluator::Maintain() {
+  if (window_matcher_.RebuildDue()) window_matcher_.Rebuild();
 }
 
 }  // namespace epiloc

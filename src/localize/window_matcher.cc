@@ -68,6 +68,42 @@ struct WindowMatcher::Impl {
     frame.first_id = points.size();
     for (int r = 0; r < frame.num_rows; ++r) points.push_back({frame.slot, r});
   }
+
+  // The rule of WindowMatcherOptions::rebuild_fraction for an index of `total` points of which
+  // `removed` are removed.
+  bool Unbalanced(size_t total, size_t removed, double fraction) const {
+    return static_cast<double>(removed) > fraction * static_cast<double>(total) ||
+           total > 2 * built_size;
+  }
+
+  // Full build over `window` (which becomes the window): its rows, in database index order, in
+  // one contiguous block.
+  void Build(std::map<int, Frame> window, int num_trees) {
+    index.reset();
+    size_t rows = 0;
+    for (const auto& [db_index, frame] : window) rows += static_cast<size_t>(frame.num_rows);
+    auto block = std::make_shared<RootSift>(rows * 128);
+    slot_db_index.clear();
+    points.clear();
+    size_t offset = 0;
+    for (auto& [db_index, frame] : window) {
+      std::copy_n(frame.rows, static_cast<size_t>(frame.num_rows) * 128, block->data() + offset);
+      frame.rows = block->data() + offset;
+      frame.buffer = block;
+      frame.slot = TakeSlot(db_index);
+      AppendPoints(frame);
+      offset += static_cast<size_t>(frame.num_rows) * 128;
+    }
+    frames = std::move(window);
+    buffers.assign(1, block);
+    num_removed = 0;
+    built_size = points.size();
+    if (!points.empty()) {
+      index = std::make_unique<KdForest>(num_trees);
+      index->Build(block->data(), points.size());
+    }
+    ++rebuilds;
+  }
 };
 
 WindowMatcher::WindowMatcher(const WindowMatcherOptions& options)
@@ -115,10 +151,9 @@ void WindowMatcher::SetWindow(const std::vector<int>& db_indices, const LoadFn& 
 
   const size_t total_after = impl.points.size() + entering_rows;
   const size_t removed_after = impl.num_removed + leaving_rows;
-  const bool rebuild = !impl.index ||
-                       static_cast<double>(removed_after) >
-                           options_.rebuild_fraction * static_cast<double>(total_after) ||
-                       total_after > 2 * impl.built_size;
+  const bool rebuild = !impl.index || (!options_.defer_rebuilds &&
+                                       impl.Unbalanced(total_after, removed_after,
+                                                       options_.rebuild_fraction));
   if (!rebuild) {
     for (int db_index : leaving) {
       const Frame& frame = impl.frames.at(db_index);
@@ -138,32 +173,21 @@ void WindowMatcher::SetWindow(const std::vector<int>& db_indices, const LoadFn& 
     }
     return;
   }
-
-  // Full build: the window's rows, in database index order, in one contiguous block.
-  impl.index.reset();
   for (int db_index : leaving) impl.frames.erase(db_index);
   entering.merge(impl.frames);
-  auto block = std::make_shared<RootSift>((total_after - removed_after) * 128);
-  impl.slot_db_index.clear();
-  impl.points.clear();
-  size_t offset = 0;
-  for (auto& [db_index, frame] : entering) {
-    std::copy_n(frame.rows, static_cast<size_t>(frame.num_rows) * 128, block->data() + offset);
-    frame.rows = block->data() + offset;
-    frame.buffer = block;
-    frame.slot = impl.TakeSlot(db_index);
-    impl.AppendPoints(frame);
-    offset += static_cast<size_t>(frame.num_rows) * 128;
-  }
-  impl.frames = std::move(entering);
-  impl.buffers.assign(1, block);
-  impl.num_removed = 0;
-  impl.built_size = impl.points.size();
-  if (!impl.points.empty()) {
-    impl.index = std::make_unique<KdForest>(options_.num_trees);
-    impl.index->Build(block->data(), impl.points.size());
-  }
-  ++impl.rebuilds;
+  impl.Build(std::move(entering), options_.num_trees);
+}
+
+bool WindowMatcher::RebuildDue() const {
+  const Impl& impl = *impl_;
+  return impl.index != nullptr &&
+         impl.Unbalanced(impl.points.size(), impl.num_removed, options_.rebuild_fraction);
+}
+
+void WindowMatcher::Rebuild() {
+  Impl& impl = *impl_;
+  std::map<int, Frame> window = std::move(impl.frames);
+  impl.Build(std::move(window), options_.num_trees);
 }
 
 std::vector<int> WindowMatcher::Window() const {

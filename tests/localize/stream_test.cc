@@ -38,7 +38,8 @@ TEST(Stream, TrackFrameByFrameGivesTheBatchRows) {
   options.all_methods = true;
   const LocalizeRun batch = Localize(dir + "/route.sqlite", dir + "/query", options);
 
-  // The same frames handed over one by one, without the pipeline.
+  // The same frames handed over one by one, without the pipeline and without Maintain() (the
+  // batch calls it after each frame: the index rebuilds it does happen at the next Track here).
   const Drive drive = LoadDrive(dir + "/query");
   const FrameReader reader(drive);
   const FramePositions gnss = PositionFrames(drive, drive.gnss);

@@ -235,6 +235,49 @@ TEST_F(WindowMatcherTest, SlidingWindowEqualsFreshMatcher) {
   EXPECT_GT(incremental, 20);
 }
 
+TEST_F(WindowMatcherTest, DeferredRebuildsWaitForTheOwner) {
+  // With defer_rebuilds, SetWindow only updates the index (it builds one when there is none);
+  // RebuildDue says when the rule asks for a build, and Rebuild gives the index a fresh matcher
+  // builds over the same window (the same searches, bit for bit).
+  constexpr int kRows = 100;
+  WindowMatcherOptions options;
+  options.defer_rebuilds = true;
+  WindowMatcher deferred(options);
+  EXPECT_FALSE(deferred.RebuildDue());
+  deferred.SetWindow({0, 1, 2, 3}, Loader(kRows));
+  EXPECT_EQ(deferred.NumRebuilds(), 1);  // the first index
+  EXPECT_FALSE(deferred.RebuildDue());
+  int due_at = -1;
+  for (int start = 1; start <= 6; ++start) {
+    deferred.SetWindow({start, start + 1, start + 2, start + 3}, Loader(kRows));
+    EXPECT_EQ(deferred.NumRebuilds(), 1) << "SetWindow rebuilt at start " << start;
+    if (due_at < 0 && deferred.RebuildDue()) due_at = start;
+  }
+  // Three of the four frames replaced: 300 removed of 700 rows (rule: > 0.5 of the rows or
+  // more than twice the built size) is not due; four replaced (400 of 800) not; five: 500 of 900.
+  EXPECT_EQ(due_at, 5);
+  ASSERT_TRUE(deferred.RebuildDue());
+  deferred.Rebuild();
+  EXPECT_EQ(deferred.NumRebuilds(), 2);
+  EXPECT_FALSE(deferred.RebuildDue());
+  EXPECT_EQ(deferred.NumDescriptors(), 4 * kRows);
+  WindowMatcherOptions fresh_options;
+  WindowMatcher fresh(fresh_options);
+  fresh.SetWindow({6, 7, 8, 9}, Loader(kRows));
+  ASSERT_EQ(deferred.Window(), fresh.Window());
+  const auto a = deferred.Match(query_->features.descriptors, 400, 0.8, 64);
+  const auto b = fresh.Match(query_->features.descriptors, 400, 0.8, 64);
+  for (int f : fresh.Window()) {
+    ASSERT_EQ(a.at(f).size(), b.at(f).size()) << "frame " << f;
+    EXPECT_GT(a.at(f).size(), 20u);
+    for (size_t i = 0; i < a.at(f).size(); ++i) {
+      EXPECT_EQ(a.at(f)[i].query_row, b.at(f)[i].query_row);
+      EXPECT_EQ(a.at(f)[i].db_row, b.at(f)[i].db_row);
+      EXPECT_EQ(a.at(f)[i].distance, b.at(f)[i].distance);
+    }
+  }
+}
+
 TEST_F(WindowMatcherTest, ConcurrentMatchesGiveTheSequentialResult) {
   WindowMatcher matcher;
   matcher.SetWindow({1, 2, 3, 4}, Loader(500));

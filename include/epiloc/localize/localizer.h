@@ -152,6 +152,7 @@ struct StageSeconds {
   double undistort = 0.0;  // grey conversion, undistortion and reduction to the working size
   double sift = 0.0;       // SIFT detection and description
   double retrieval = 0.0;  // retrieval descriptor (and the query's index, pair-by-pair matching)
+  double window = 0.0;     // database frames loaded into the window's index, index updated
   double match = 0.0;      // descriptor matching against the window's database frames
   double geometry = 0.0;   // epipolar geometry (RANSAC) of each pair
   double refine = 0.0;     // 6-DoF pose by PnP against the survey's points
@@ -249,6 +250,11 @@ class Localizer {
   // Tracks one frame (frames in time order) and returns its estimate.
   FrameEstimate Track(const PreparedFrame& frame);
   FrameEstimate Track(const QueryFrame& frame) { return Track(Prepare(frame)); }
+  // Upkeep Track left due (a rebuild of the window's descriptor index once incremental updates
+  // have unbalanced it): call it after a frame's rows are out, while waiting for the next frame,
+  // to keep it off that frame's latency. Track does it first itself when it is still due; the
+  // results do not depend on whether or when it is called.
+  void Maintain();
 
   // Result rows of a tracked frame (gps and nearest with all_methods, online when the mode or
   // all_methods asks for it, pnp when refining), in that order.

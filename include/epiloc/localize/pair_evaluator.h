@@ -103,13 +103,22 @@ class PairEvaluator {
 
   // The same with one search of the query's descriptors against the window of `db_indices`
   // (WindowMatcher); the window slides incrementally between calls. Not thread-safe.
-  // `match_seconds` and `geometry_seconds`, when given, get the wall time of the two stages added.
+  // `window_seconds` (database frames loaded, the window's index updated), `match_seconds` and
+  // `geometry_seconds`, when given, get the wall time of the three stages added. With
+  // options.window.defer_rebuilds, a rebuild of the window's index the last call left due is
+  // done first (Maintain() does it earlier, between calls).
   std::vector<PairResult> EvaluateWindow(const Camera& query_camera,
                                          const FeatureSet& query,
                                          const std::vector<int>& db_indices,
                                          int num_threads,
                                          double* match_seconds = nullptr,
-                                         double* geometry_seconds = nullptr);
+                                         double* geometry_seconds = nullptr,
+                                         double* window_seconds = nullptr);
+
+  // Whether the window's index is due for a rebuild (options.window.defer_rebuilds), and the
+  // rebuild: upkeep for a streaming caller's idle time between frames. Not thread-safe.
+  bool MaintenanceDue() const { return window_matcher_.RebuildDue(); }
+  void Maintain();
 
  private:
   struct CachedFrame {

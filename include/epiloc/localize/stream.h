@@ -35,6 +35,7 @@ struct LocalizeRun {
   double extraction_seconds = 0.0;  // undistortion, SIFT, retrieval descriptor
   double tracking_seconds = 0.0;    // matching, epipoles, DTW, V-fit, refinement
   StageSeconds stages;              // the same split by stage, summed over frames
+  double maintenance_seconds = 0.0;  // Localizer::Maintain between frames (in stages.window)
   // Per tracked frame, from the frame's arrival (FrameSource) to its rows handed to the sink.
   double latency_p50_s = 0.0, latency_p95_s = 0.0, latency_max_s = 0.0;
   // Frames whose image gave no SIFT features (black, overexposed, textureless), in order.

@@ -28,6 +28,10 @@ struct WindowMatcherOptions {
   // the search) exceed this fraction of all the descriptors it holds, or when it holds more than
   // twice as many as at its last build (incremental insertions unbalance the trees).
   double rebuild_fraction = 0.5;
+  // With this, SetWindow only updates the index incrementally (it builds one only when there is
+  // none) and the owner rebuilds it with Rebuild() when RebuildDue() says so, between searches:
+  // off the critical path of a streaming caller (Localizer::Maintain).
+  bool defer_rebuilds = false;
 
   // Throws Error naming the first invalid field.
   void Check() const;
@@ -65,6 +69,12 @@ class WindowMatcher {
   // already in the window are not reloaded. Throws Error on a duplicate or negative index or a
   // null descriptor set; the matcher is then unchanged (frames are loaded before any change).
   void SetWindow(const std::vector<int>& db_indices, const LoadFn& load);
+
+  // Whether the index has drifted far enough from a balanced one that the rule of
+  // `rebuild_fraction` asks for a full build (only ever true with defer_rebuilds).
+  bool RebuildDue() const;
+  // Builds the index from scratch over the current window (releasing removed frames' rows).
+  void Rebuild();
 
   // Database indices in the window, ascending.
   std::vector<int> Window() const;
