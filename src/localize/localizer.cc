@@ -582,7 +582,17 @@ PreparedFrame Localizer::Prepare(const QueryFrame& frame) const {
   return out;
 }
 
-void Localizer::Maintain() { impl_->evaluator->Maintain(); }
+void Localizer::Maintain() {
+  Impl& impl = *impl_;
+  impl.evaluator->Maintain();
+  // The database frames the next frame's tracking window will hold (the filter's prediction one
+  // frame interval ahead) are read now, not on that frame's latency. A cache warm-up only.
+  if (impl.filter.initialised() && impl.frame_interval_s > 0.0) {
+    const double s = impl.filter.s_m() + impl.filter.v_mps() * impl.frame_interval_s;
+    const double half_width = impl.options.track_window_m;
+    impl.evaluator->Prefetch(impl.Window(s - half_width, s + half_width));
+  }
+}
 
 FrameEstimate Localizer::Track(const PreparedFrame& query) {
   const auto start = Clock::now();
@@ -605,6 +615,10 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
                 s_gnss > impl.route.length_m() + options.off_route_m;
   }
   const double t = query.timestamp_s;
+  if (impl.last_timestamp_s && t > *impl.last_timestamp_s) {
+    impl.frame_interval_s = t - *impl.last_timestamp_s;
+  }
+  impl.last_timestamp_s = t;
   const int64_t pairs_before = impl.num_pairs;
   AlongTrackFilter& filter = impl.filter;
   if (filter.initialised()) filter.Predict(t);

@@ -71,6 +71,9 @@ struct Localizer::Impl {
 
   // Tracking state: the filter is initialised while the vehicle is tracked.
   AlongTrackFilter filter;
+  // Time of the last tracked frame and the interval before it (Maintain's prefetch), seconds.
+  std::optional<double> last_timestamp_s;
+  double frame_interval_s = 0.0;
   int misses = 0;  // consecutive frames without an accepted measurement
   // The track has been confirmed since its (re)initialisation: by two agreeing measurements of
   // the first frame, or by a later frame's measurement passing the gate. Until then its frames

@@ -228,6 +228,10 @@ std::vector<PairResult> PairEvaluator::EvaluateWindow(const Camera& query_camera
   return results;
 }
 
+void PairEvaluator::Prefetch(const std::vector<int>& db_indices) const {
+  for (const int db_index : db_indices) Load(db_index);
+}
+
 void PairEvaluator::Maintain() {
   if (window_matcher_.RebuildDue()) window_matcher_.Rebuild();
 }

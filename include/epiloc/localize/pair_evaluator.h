@@ -119,6 +119,8 @@ class PairEvaluator {
   // rebuild: upkeep for a streaming caller's idle time between frames. Not thread-safe.
   bool MaintenanceDue() const { return window_matcher_.RebuildDue(); }
   void Maintain();
+  // Reads the listed database frames into the cache (those not there yet). Thread-safe.
+  void Prefetch(const std::vector<int>& db_indices) const;
 
  private:
   struct CachedFrame {
