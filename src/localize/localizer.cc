@@ -409,14 +409,16 @@ PoseRefinement Localizer::Impl::Refine(const PreparedFrame& query,
   if (!options.refine.search_by_projection || refined.status != RefineStatus::kOk) return refined;
   // The local map: the points seen by the database frames from local_map_behind_m behind to
   // local_map_ahead_m ahead of the estimate (far points constrain the along-track position), the
-  // evaluated window's first.
+  // evaluated window's first, then the others nearest first (a point keeps the descriptor of the
+  // first frame that sees it: the view closest to the query's).
   const double s = refined.projection.s_m;
   std::vector<std::shared_ptr<const FrameMapPoints>> local_map;
   for (const PairResult& p : pairs) local_map.push_back(evaluator->MapPoints(p.db_index));
-  for (const int j : FramesBetween(db_s, s - options.refine.local_map_behind_m,
-                                   s + options.refine.local_map_ahead_m)) {
-    local_map.push_back(evaluator->MapPoints(j));
-  }
+  std::vector<int> frames = FramesBetween(db_s, s - options.refine.local_map_behind_m,
+                                          s + options.refine.local_map_ahead_m);
+  std::stable_sort(frames.begin(), frames.end(),
+                   [&](int a, int b) { return std::abs(db_s[a] - s) < std::abs(db_s[b] - s); });
+  for (const int j : frames) local_map.push_back(evaluator->MapPoints(j));
   const std::vector<float> root_sift =
       ToRootSift(query.features.descriptors, query.features.size());
   return RefineByProjection(camera, query.features.keypoints, root_sift, local_map, refined,

@@ -109,8 +109,8 @@ PoseRefinement SolveAndCheck(const Camera& camera,
   const double along_model = std::max(0.0, along_axis.dot(model * along_axis));
   out.sigma_along_model_m = std::sqrt(along_model);
   out.sigma_along_m = std::sqrt(std::max(along_model, along_axis.dot(jack * along_axis)));
-  out.sigma_horizontal_m = std::sqrt(
-      std::max({0.0, model(0, 0) + model(1, 1), jack(0, 0) + jack(1, 1)}));
+  out.sigma_horizontal_m =
+      std::sqrt(std::max({0.0, model(0, 0) + model(1, 1), jack(0, 0) + jack(1, 1)}));
   out.pose_covariance = pnp.pose_covariance;
   out.status = RefineStatus::kOk;
   return out;
@@ -161,6 +161,182 @@ PoseRefinement RefinePose(const Camera& camera,
   return SolveAndCheck(camera, pixels, points, s_epipolar_m, route, options);
 }
 
+namespace {
+
+// A map point in view of a pose: its projection, the variance of that projection along its major
+// axis under the pose's covariance (px^2), and its descriptor.
+struct Projected {
+  Eigen::Vector3d point_in_enu;
+  Eigen::Vector2d uv;
+  double variance_px2;
+  const float* root_sift;
+};
+
+// Query keypoints binned in square cells, for the searches within a radius.
+class KeypointGrid {
+ public:
+  KeypointGrid(const Camera& camera, const FeatureKeypoints& keypoints, int cell_px)
+      : keypoints_(keypoints),
+        cell_(std::max(1, cell_px)),
+        w_(camera.width / cell_ + 1),
+        h_(camera.height / cell_ + 1),
+        cells_(static_cast<size_t>(w_) * h_) {
+    for (int q = 0; q < static_cast<int>(keypoints.rows()); ++q) {
+      cells_[static_cast<size_t>(Cell(keypoints(q, 1), h_)) * w_ + Cell(keypoints(q, 0), w_)]
+          .push_back(q);
+    }
+  }
+  // Calls f(q) for every keypoint q within `radius_px` of `uv`.
+  template <typename F>
+  void ForEachWithin(const Eigen::Vector2d& uv, double radius_px, F&& f) const {
+    const int cx = Cell(uv.x(), w_), cy = Cell(uv.y(), h_);
+    const int reach = static_cast<int>(std::ceil(radius_px / cell_));
+    const double r2 = radius_px * radius_px;
+    for (int gy = std::max(0, cy - reach); gy <= std::min(h_ - 1, cy + reach); ++gy) {
+      for (int gx = std::max(0, cx - reach); gx <= std::min(w_ - 1, cx + reach); ++gx) {
+        for (const int q : cells_[static_cast<size_t>(gy) * w_ + gx]) {
+          const double du = keypoints_(q, 0) - uv.x(), dv = keypoints_(q, 1) - uv.y();
+          if (du * du + dv * dv <= r2) f(q);
+        }
+      }
+    }
+  }
+
+ private:
+  int Cell(double v, int n) const { return std::clamp(static_cast<int>(v / cell_), 0, n - 1); }
+  const FeatureKeypoints& keypoints_;
+  int cell_, w_, h_;
+  std::vector<std::vector<int>> cells_;
+};
+
+// Each point with radius_px(point) > 0 matched to the query feature within that radius of its
+// projection with the nearest RootSIFT descriptor (at most max_descriptor_distance, below
+// search_ratio times the second nearest within the radius); a feature claimed by several points
+// keeps the closest descriptor. Appends the correspondences.
+template <typename RadiusFn>
+void MatchProjected(const std::vector<Projected>& projected,
+                    const FeatureKeypoints& keypoints,
+                    const std::vector<float>& query_root_sift,
+                    const KeypointGrid& grid,
+                    RadiusFn radius_px,
+                    const RefineOptions& options,
+                    std::vector<Eigen::Vector2d>* pixels,
+                    std::vector<Eigen::Vector3d>* points) {
+  struct Claim {
+    double distance = INFINITY;
+    const Projected* point = nullptr;
+  };
+  std::vector<Claim> claims(keypoints.rows());
+  for (const Projected& p : projected) {
+    const double radius = radius_px(p);
+    if (!(radius > 0)) continue;
+    double best = INFINITY, second = INFINITY;
+    int best_q = -1;
+    grid.ForEachWithin(p.uv, radius, [&](int q) {
+      const float* a = query_root_sift.data() + static_cast<size_t>(q) * 128;
+      float sum = 0.f;
+      for (int k = 0; k < 128; ++k) sum += (a[k] - p.root_sift[k]) * (a[k] - p.root_sift[k]);
+      const double dist = std::sqrt(sum);
+      if (dist < best) {
+        second = best;
+        best = dist;
+        best_q = q;
+      } else if (dist < second) {
+        second = dist;
+      }
+    });
+    if (best_q < 0 || best > options.max_descriptor_distance ||
+        best > options.search_ratio * second) {
+      continue;
+    }
+    if (best < claims[best_q].distance) claims[best_q] = {best, &p};
+  }
+  for (int q = 0; q < static_cast<int>(claims.size()); ++q) {
+    if (!claims[q].point) continue;
+    pixels->emplace_back(keypoints(q, 0), keypoints(q, 1));
+    points->push_back(claims[q].point->point_in_enu);
+  }
+}
+
+PoseRefinement SearchByProjection(
+    const Camera& camera,
+    const FeatureKeypoints& keypoints,
+    const std::vector<float>& query_root_sift,
+    const std::vector<std::shared_ptr<const FrameMapPoints>>& local_map,
+    const PoseRefinement& initial,
+    double s_epipolar_m,
+    const Route& route,
+    const RefineOptions& options,
+    bool wide) {
+  if (initial.status != RefineStatus::kOk) return initial;
+  const double radius = options.search_radius_px;
+  const Rigid3d cam_from_enu = initial.enu_from_cam.Inverse();
+  const Eigen::Matrix3d rotation = cam_from_enu.rotation.toRotationMatrix();
+  // The points in view (one descriptor per point: the first frame's).
+  std::vector<Projected> projected;
+  std::unordered_map<int64_t, bool> seen;
+  for (const auto& frame : local_map) {
+    if (!frame) continue;
+    for (int k = 0; k < frame->size(); ++k) {
+      if (!seen.emplace(frame->point_id[k], true).second) continue;
+      const Eigen::Vector3d x = cam_from_enu * frame->point_in_enu[k];
+      if (x.z() < 0.5) continue;
+      const Eigen::Vector2d uv = camera.Project(x);
+      if (uv.x() < -radius || uv.y() < -radius || uv.x() > camera.width - 1 + radius ||
+          uv.y() > camera.height - 1 + radius) {
+        continue;
+      }
+      const Eigen::Matrix<double, 2, 6> j = ProjectionPoseJacobian(camera, x, rotation);
+      const Eigen::Matrix2d c = j * initial.pose_covariance * j.transpose();
+      projected.push_back({frame->point_in_enu[k], uv,
+                           0.5 * (c.trace() + std::hypot(c(0, 0) - c(1, 1), 2.0 * c(0, 1))),
+                           frame->root_sift.data() + static_cast<size_t>(k) * 128});
+    }
+  }
+  const double sigmas = std::max(options.search_sigmas, 1e-9);
+  const double max_variance = (radius / sigmas) * (radius / sigmas);
+  int num_predicted = 0;
+  for (const Projected& p : projected) num_predicted += p.variance_px2 <= max_variance;
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector3d> points;
+  if (2 * num_predicted < static_cast<int>(projected.size())) {
+    if (!wide) return initial;
+    // The wide search. The model covariance assumes independent pixel errors; scaled up to the
+    // along-route sigma the pose carries (the jackknife's when larger).
+    const double model = initial.sigma_along_model_m * initial.sigma_along_model_m;
+    const double scale =
+        model > 0 ? std::max(1.0, initial.sigma_along_m * initial.sigma_along_m / model) : 1.0;
+    const KeypointGrid grid(camera, keypoints, 2 * static_cast<int>(std::ceil(radius)));
+    MatchProjected(
+        projected, keypoints, query_root_sift, grid,
+        [&](const Projected& p) {
+          return std::max(radius, sigmas * std::sqrt(scale * p.variance_px2));
+        },
+        options, &pixels, &points);
+    const PoseRefinement found =
+        SolveAndCheck(camera, pixels, points, s_epipolar_m, route, options);
+    if (found.status != RefineStatus::kOk || found.num_inliers <= initial.num_inliers) {
+      return initial;
+    }
+    // The search within the radius from the pose the wide search found (never wide again).
+    return SearchByProjection(camera, keypoints, query_root_sift, local_map, found, s_epipolar_m,
+                              route, options, false);
+  }
+  const KeypointGrid grid(camera, keypoints, static_cast<int>(std::ceil(radius)));
+  MatchProjected(
+      projected, keypoints, query_root_sift, grid,
+      [&](const Projected& p) { return p.variance_px2 <= max_variance ? radius : 0.0; }, options,
+      &pixels, &points);
+  PoseRefinement guided = SolveAndCheck(camera, pixels, points, s_epipolar_m, route, options);
+  // The search must add support, not replace a good pose by a worse one.
+  if (guided.status != RefineStatus::kOk || guided.num_inliers <= initial.num_inliers) {
+    return initial;
+  }
+  return guided;
+}
+
+}  // namespace
+
 PoseRefinement RefineByProjection(
     const Camera& camera,
     const FeatureKeypoints& keypoints,
@@ -170,106 +346,12 @@ PoseRefinement RefineByProjection(
     double s_epipolar_m,
     const Route& route,
     const RefineOptions& options) {
-  if (initial.status != RefineStatus::kOk) return initial;
   const int num_query = static_cast<int>(keypoints.rows());
   EPILOC_CHECK(query_root_sift.size() >= static_cast<size_t>(num_query) * 128,
                "RefineByProjection: {} RootSIFT values for {} keypoints", query_root_sift.size(),
                num_query);
-  // Query keypoints in a grid of cells the size of the search radius.
-  const double radius = options.search_radius_px;
-  const int cell = std::max(1, static_cast<int>(std::ceil(radius)));
-  const int grid_w = camera.width / cell + 1, grid_h = camera.height / cell + 1;
-  std::vector<std::vector<int>> grid(static_cast<size_t>(grid_w) * grid_h);
-  const auto cell_of = [&](double x, double y) {
-    return std::pair<int, int>(std::clamp(static_cast<int>(x / cell), 0, grid_w - 1),
-                               std::clamp(static_cast<int>(y / cell), 0, grid_h - 1));
-  };
-  for (int q = 0; q < num_query; ++q) {
-    const auto [cx, cy] = cell_of(keypoints(q, 0), keypoints(q, 1));
-    grid[static_cast<size_t>(cy) * grid_w + cx].push_back(q);
-  }
-  const auto distance = [&](int q, const float* d) {
-    const float* a = query_root_sift.data() + static_cast<size_t>(q) * 128;
-    float sum = 0.f;
-    for (int k = 0; k < 128; ++k) sum += (a[k] - d[k]) * (a[k] - d[k]);
-    return std::sqrt(sum);
-  };
-  // Per query feature, the best point claiming it.
-  struct Claim {
-    double distance = INFINITY;
-    int64_t point_id = -1;
-    Eigen::Vector3d point;
-  };
-  std::vector<Claim> claims(num_query);
-  std::unordered_map<int64_t, bool> seen;
-  const Rigid3d cam_from_enu = initial.enu_from_cam.Inverse();
-  const Eigen::Matrix3d rotation = cam_from_enu.rotation.toRotationMatrix();
-  const double r2 = radius * radius;
-  // A projection's variance along its major axis under the initial pose's covariance.
-  const auto projection_variance = [&](const Eigen::Vector3d& x) {
-    const Eigen::Matrix<double, 2, 6> j = ProjectionPoseJacobian(camera, x, rotation);
-    const Eigen::Matrix2d c = j * initial.pose_covariance * j.transpose();
-    return 0.5 * (c.trace() + std::hypot(c(0, 0) - c(1, 1), 2.0 * c(0, 1)));
-  };
-  const double max_variance = (radius / std::max(options.search_sigmas, 1e-9)) *
-                              (radius / std::max(options.search_sigmas, 1e-9));
-  int num_projected = 0, num_predicted = 0;
-  for (const auto& frame : local_map) {
-    if (!frame) continue;
-    for (int k = 0; k < frame->size(); ++k) {
-      const int64_t id = frame->point_id[k];
-      if (!seen.emplace(id, true).second) continue;  // one descriptor per point (the first)
-      const Eigen::Vector3d x = cam_from_enu * frame->point_in_enu[k];
-      if (x.z() < 0.5) continue;
-      const Eigen::Vector2d uv = camera.Project(x);
-      if (uv.x() < -radius || uv.y() < -radius || uv.x() > camera.width - 1 + radius ||
-          uv.y() > camera.height - 1 + radius) {
-        continue;
-      }
-      ++num_projected;
-      if (projection_variance(x) > max_variance) continue;
-      ++num_predicted;
-      const float* d = frame->root_sift.data() + static_cast<size_t>(k) * 128;
-      const auto [cx, cy] = cell_of(uv.x(), uv.y());
-      double best = INFINITY, second = INFINITY;
-      int best_q = -1;
-      for (int gy = std::max(0, cy - 1); gy <= std::min(grid_h - 1, cy + 1); ++gy) {
-        for (int gx = std::max(0, cx - 1); gx <= std::min(grid_w - 1, cx + 1); ++gx) {
-          for (const int q : grid[static_cast<size_t>(gy) * grid_w + gx]) {
-            const double du = keypoints(q, 0) - uv.x(), dv = keypoints(q, 1) - uv.y();
-            if (du * du + dv * dv > r2) continue;
-            const double dist = distance(q, d);
-            if (dist < best) {
-              second = best;
-              best = dist;
-              best_q = q;
-            } else if (dist < second) {
-              second = dist;
-            }
-          }
-        }
-      }
-      if (best_q < 0 || best > options.max_descriptor_distance ||
-          best > options.search_ratio * second) {
-        continue;
-      }
-      if (best < claims[best_q].distance) claims[best_q] = {best, id, frame->point_in_enu[k]};
-    }
-  }
-  if (2 * num_predicted < num_projected) return initial;
-  std::vector<Eigen::Vector2d> pixels;
-  std::vector<Eigen::Vector3d> points;
-  for (int q = 0; q < num_query; ++q) {
-    if (claims[q].point_id < 0) continue;
-    pixels.emplace_back(keypoints(q, 0), keypoints(q, 1));
-    points.push_back(claims[q].point);
-  }
-  PoseRefinement guided = SolveAndCheck(camera, pixels, points, s_epipolar_m, route, options);
-  // The search must add support, not replace a good pose by a worse one.
-  if (guided.status != RefineStatus::kOk || guided.num_inliers <= initial.num_inliers) {
-    return initial;
-  }
-  return guided;
+  return SearchByProjection(camera, keypoints, query_root_sift, local_map, initial, s_epipolar_m,
+                            route, options, options.wide_search);
 }
 
 }  // namespace epiloc

@@ -49,8 +49,22 @@ struct RefineOptions {
   double search_sigmas = 3.0;
   double max_descriptor_distance = 0.7;
   double search_ratio = 0.9;
-  double local_map_behind_m = 2.0;  // database frames searched by projection: this far behind
-  double local_map_ahead_m = 10.0;  // ... to this far ahead of the epipolar estimate
+  // ... then the wide search: each point within search_sigmas standard deviations of its
+  // projection (at least search_radius_px), the pose's covariance scaled up to its along-route
+  // sigma (the jackknife's when larger), with the same descriptor distance and ratio; PnP on what
+  // it finds and, when that pose has more inliers, the search above from it. The true feature
+  // lies within the searched region, and the descriptor, not the nearness to the wrong
+  // projection, picks it; a pattern repeated within the region fails the ratio test.
+  bool wide_search = true;
+  // Database frames searched by projection: from this far behind the estimate ... A camera
+  // turned across the street (entering it from a side road) sees the points beside it, and the
+  // survey's forward-looking camera saw those from behind: from lateral offset / tan(half its
+  // horizontal field of view). Facades 10 m to the side (two lanes, parking and pavement) and a
+  // half field of view of 34 degrees (800 px at fx 600, the synthetic survey; KITTI's 1242 px at
+  // fx 721: 41 degrees, 11.6 m) give 15 m. With 2 m the search found 45-52 of the ~190 points the
+  // query sees in synth_turn_in's turn.
+  double local_map_behind_m = 15.0;
+  double local_map_ahead_m = 10.0;  // ... to this far ahead of it
 
   void Check() const;
   static PnpOptions DefaultPnp();
@@ -94,8 +108,10 @@ PoseRefinement RefinePose(const Camera& camera,
 // it that closely, see search_sigmas) with the nearest RootSIFT descriptor (at
 // most max_descriptor_distance, and below search_ratio times the second nearest within the
 // radius; a feature claimed by several points keeps the closest descriptor); PnP again on these
-// correspondences, with the same checks. Returns the new pose if it is ok with more inliers than
-// `initial`, else `initial`. `query_root_sift`: 128 floats per keypoint row (ToRootSift).
+// correspondences, with the same checks. When the initial pose predicts too few projections that
+// closely, the wide search (RefineOptions::wide_search) runs first. Returns the new pose if it is
+// ok with more inliers than `initial`, else `initial`. `query_root_sift`: 128 floats per keypoint
+// row (ToRootSift).
 PoseRefinement RefineByProjection(
     const Camera& camera,
     const FeatureKeypoints& keypoints,
