@@ -141,20 +141,19 @@ TEST(PoseRefiner, APoseThatDisagreesWithTheSequenceIsRejected) {
 }
 
 // The local map of MakeScene's points (one database frame), each with its own random unit
-// RootSIFT descriptor, and query keypoints where the map projects under `pose`, carrying those
-// descriptors: a repeated pattern that matches one period off.
+// RootSIFT descriptor, and query keypoints where the map projects under each of `poses`, carrying
+// those descriptors slightly changed (two poses: a pattern repeated one period off).
 struct GuidedScene {
   Scene scene;
   std::vector<std::shared_ptr<const FrameMapPoints>> local_map;
   std::vector<float> query_root_sift;
 };
-GuidedScene MakeGuidedScene(const Rigid3d& keypoints_from_pose) {
+GuidedScene MakeGuidedScene(const std::vector<Rigid3d>& keypoints_from_poses) {
   GuidedScene g;
   g.scene = MakeScene(150, 30.0, 0.0, 11);
   auto map = std::make_shared<FrameMapPoints>();
   std::mt19937 rng(12);
   std::normal_distribution<float> normal(0.f, 1.f);
-  const Rigid3d cam_from_enu = keypoints_from_pose.Inverse();
   std::vector<Eigen::Vector2d> pixels;
   for (const PairResult& pair : g.scene.pairs) {
     for (const PointMatch& m : pair.point_matches) {
@@ -162,8 +161,6 @@ GuidedScene MakeGuidedScene(const Rigid3d& keypoints_from_pose) {
           map->point_id.end()) {
         continue;
       }
-      const Eigen::Vector3d c = cam_from_enu * m.point_in_enu;
-      if (c.z() <= 1) continue;
       std::vector<float> d(128);
       float norm = 0.f;
       for (float& v : d) {
@@ -174,8 +171,19 @@ GuidedScene MakeGuidedScene(const Rigid3d& keypoints_from_pose) {
       map->point_id.push_back(m.point_id);
       map->point_in_enu.push_back(m.point_in_enu);
       map->root_sift.insert(map->root_sift.end(), d.begin(), d.end());
-      g.query_root_sift.insert(g.query_root_sift.end(), d.begin(), d.end());
-      pixels.push_back(g.scene.camera.Project(c));
+      // The query's descriptor: the map's, a little off (another view), the same in every copy.
+      norm = 0.f;
+      for (float& v : d) {
+        v = std::abs(v + 0.01f * normal(rng));
+        norm += v * v;
+      }
+      for (float& v : d) v /= std::sqrt(norm);
+      for (const Rigid3d& pose : keypoints_from_poses) {
+        const Eigen::Vector3d c = pose.Inverse() * m.point_in_enu;
+        if (c.z() <= 1) continue;
+        g.query_root_sift.insert(g.query_root_sift.end(), d.begin(), d.end());
+        pixels.push_back(g.scene.camera.Project(c));
+      }
     }
   }
   g.scene.keypoints.resize(static_cast<int>(pixels.size()), 4);
@@ -187,37 +195,83 @@ GuidedScene MakeGuidedScene(const Rigid3d& keypoints_from_pose) {
   return g;
 }
 
-TEST(PoseRefiner, AnUncertainPoseIsNotConfirmedByWhatLiesNearItsOwnProjections) {
-  // The initial pose is 0.5 m behind the camera, and the query sees the map's pattern exactly
-  // where that wrong pose projects it (a pattern matched one period off). Searching by projection
-  // around the wrong pose finds a complete, consistent set of matches for it.
-  Scene truth = MakeScene(150, 30.0, 0.0, 11);
+// A pose 0.5 m behind MakeScene's camera, uncertain (0.35 m along the route, as PnP on a few
+// dozen matches in a turn: its points' projections are uncertain by far more than the search
+// radius) or certain (centre sigma 1 mm, rotation 1e-5 rad).
+PoseRefinement BehindTheCamera(const Scene& truth, bool certain) {
   PoseRefinement initial;
   initial.status = RefineStatus::kOk;
   initial.enu_from_cam = truth.enu_from_cam;
   initial.enu_from_cam.translation.y() -= 0.5;
   initial.num_inliers = 20;
-  initial.sigma_along_m = 0.35;
-  const GuidedScene g = MakeGuidedScene(initial.enu_from_cam);
-  // Certain of the initial pose (centre sigma 1 mm, rotation 1e-5 rad): the search runs and
-  // takes the set it finds (what it did whatever the initial pose's covariance).
+  initial.sigma_along_m = initial.sigma_along_model_m = 0.35;
   initial.pose_covariance = Eigen::Matrix<double, 6, 6>::Identity() * 1e-10;
   initial.pose_covariance.bottomRightCorner<3, 3>() *= 1e4;
+  if (!certain) initial.pose_covariance(4, 4) = 0.35 * 0.35;
+  return initial;
+}
+
+TEST(PoseRefiner, AnUncertainPoseIsNotConfirmedByWhatLiesNearItsOwnProjections) {
+  // The query sees the map's pattern exactly where the wrong pose projects it. Searching within
+  // the radius around the wrong pose finds a complete, consistent set of matches for it.
+  const Scene truth = MakeScene(150, 30.0, 0.0, 11);
+  PoseRefinement initial = BehindTheCamera(truth, true);
+  const GuidedScene g = MakeGuidedScene({initial.enu_from_cam});
+  RefineOptions options;
+  options.wide_search = false;
+  // Certain of the initial pose: the search runs and takes the set it finds (what it did
+  // whatever the initial pose's covariance).
   const PoseRefinement confident =
       RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map, initial,
-                         29.5, g.scene.route, RefineOptions());
+                         29.5, g.scene.route, options);
   ASSERT_EQ(confident.status, RefineStatus::kOk) << confident.message;
   EXPECT_GT(confident.num_inliers, 100);
-  // Uncertain of it (0.35 m along the route, as PnP on a few dozen matches in a turn): its points'
-  // projections are uncertain by far more than the search radius, so the search cannot tell the
-  // pattern's period apart and the initial pose is kept, with its sigma.
-  initial.pose_covariance(4, 4) = 0.35 * 0.35;
+  // Uncertain of it: the search within the radius cannot tell the pattern's period apart and the
+  // initial pose is kept, with its sigma.
+  initial = BehindTheCamera(truth, false);
   const PoseRefinement uncertain =
       RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map, initial,
-                         29.5, g.scene.route, RefineOptions());
+                         29.5, g.scene.route, options);
   EXPECT_EQ(uncertain.num_inliers, 20);
   EXPECT_EQ(uncertain.sigma_along_m, 0.35);
   EXPECT_LT((uncertain.enu_from_cam.translation - initial.enu_from_cam.translation).norm(), 1e-12);
+}
+
+TEST(PoseRefiner, TheWideSearchFindsThePoseAnUncertainOneMissed) {
+  // The query sees the map where the true camera projects it; the initial pose is 0.5 m behind
+  // and uncertain (the turn into the street: PnP on the few points the evaluated pairs share).
+  const Scene truth = MakeScene(150, 30.0, 0.0, 11);
+  const GuidedScene g = MakeGuidedScene({truth.enu_from_cam});
+  const PoseRefinement initial = BehindTheCamera(truth, false);
+  RefineOptions options;
+  options.wide_search = false;
+  const PoseRefinement narrow =
+      RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map, initial,
+                         29.5, g.scene.route, options);
+  EXPECT_EQ(narrow.num_inliers, 20);  // too uncertain for the search within the radius: kept
+  options.wide_search = true;
+  const PoseRefinement wide =
+      RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map, initial,
+                         29.5, g.scene.route, options);
+  ASSERT_EQ(wide.status, RefineStatus::kOk) << wide.message;
+  EXPECT_GT(wide.num_inliers, 100);
+  EXPECT_LT((wide.enu_from_cam.translation - truth.enu_from_cam.translation).norm(), 1e-3);
+  EXPECT_NEAR(wide.projection.s_m, 30.0, 1e-3);
+  EXPECT_LT(wide.sigma_along_m, 0.05);
+}
+
+TEST(PoseRefiner, TheWideSearchDoesNotChooseBetweenPeriodsOfAPattern) {
+  // The map's pattern appears twice in the query, where the true camera and where the wrong,
+  // uncertain pose project it: within the wide search's region both look alike, the ratio test
+  // refuses them, and the initial pose is kept.
+  const Scene truth = MakeScene(150, 30.0, 0.0, 11);
+  const PoseRefinement initial = BehindTheCamera(truth, false);
+  const GuidedScene g = MakeGuidedScene({truth.enu_from_cam, initial.enu_from_cam});
+  const PoseRefinement r =
+      RefineByProjection(g.scene.camera, g.scene.keypoints, g.query_root_sift, g.local_map, initial,
+                         29.5, g.scene.route, RefineOptions());
+  EXPECT_EQ(r.num_inliers, 20);
+  EXPECT_LT((r.enu_from_cam.translation - initial.enu_from_cam.translation).norm(), 1e-12);
 }
 
 TEST(PoseRefiner, OptionsAreChecked) {
