@@ -42,29 +42,29 @@ struct RefineOptions {
   double search_radius_px = 4.0;
   // A point is searched only when the initial pose predicts its projection to within the radius
   // at this many standard deviations (the major axis of its 2-D covariance; 3: 99 % of a 2-D
-  // Gaussian). When fewer than half of the projected points are, the initial pose is kept: its
-  // errors reach beyond the radius, and what the search finds near the wrong projections is a
-  // consistent but wrong set of matches that only shrinks the covariance (a turn into the street,
-  // viewing the survey's structure 60-70 degrees across).
+  // Gaussian). When fewer than half of the projected points are, this search does not run from
+  // the initial pose: its errors reach beyond the radius, and what the search finds near the
+  // wrong projections is a consistent but wrong set of matches that only shrinks the covariance
+  // (a turn into the street, viewing the survey's structure 60-70 degrees across).
   double search_sigmas = 3.0;
   double max_descriptor_distance = 0.7;
   double search_ratio = 0.9;
-  // ... then the wide search: each point within search_sigmas standard deviations of its
-  // projection (at least search_radius_px), the pose's covariance scaled up to its along-route
-  // sigma (the jackknife's when larger), with the same descriptor distance and ratio; PnP on what
-  // it finds and, when that pose has more inliers, the search above from it. The true feature
-  // lies within the searched region, and the descriptor, not the nearness to the wrong
+  // Then the wide search (else the initial pose is kept): each point within search_sigmas standard
+  // deviations of its projection (at least search_radius_px), the pose's covariance scaled up to
+  // its along-route sigma (the jackknife's when larger), with the same descriptor distance and
+  // ratio; PnP on what it finds and, when that pose has more inliers, the search above from it. The
+  // true feature lies within the searched region, and the descriptor, not the nearness to the wrong
   // projection, picks it; a pattern repeated within the region fails the ratio test.
   bool wide_search = true;
-  // Database frames searched by projection: from this far behind the estimate ... A camera
-  // turned across the street (entering it from a side road) sees the points beside it, and the
-  // survey's forward-looking camera saw those from behind: from lateral offset / tan(half its
-  // horizontal field of view). Facades 10 m to the side (two lanes, parking and pavement) and a
-  // half field of view of 34 degrees (800 px at fx 600, the synthetic survey; KITTI's 1242 px at
-  // fx 721: 41 degrees, 11.6 m) give 15 m. With 2 m the search found 45-52 of the ~190 points the
-  // query sees in synth_turn_in's turn.
+  // Database frames searched by projection: from this far behind the estimate (to
+  // local_map_ahead_m ahead of it). A camera turned across the street (entering it from a side
+  // road) sees the points beside it, and the survey's forward-looking camera saw those from
+  // behind: from lateral offset / tan(half its horizontal field of view). Facades 10 m to the side
+  // (two lanes, parking and pavement) and a half field of view of 34 degrees (800 px at fx 600, the
+  // synthetic survey; KITTI's 1242 px at fx 721: 41 degrees, 11.6 m) give 15 m. With 2 m the search
+  // found 45-52 of the ~190 points the query sees in synth_turn_in's turn.
   double local_map_behind_m = 15.0;
-  double local_map_ahead_m = 10.0;  // ... to this far ahead of it
+  double local_map_ahead_m = 10.0;
 
   void Check() const;
   static PnpOptions DefaultPnp();
