@@ -65,34 +65,52 @@ FollowDriveSource::FollowDriveSource(const std::string& drive_dir,
                "{}: the drive has no GNSS file (use --no-gps to localize without)", drive_dir);
 }
 
+void FollowDriveSource::Poll() {
+  // Rows read in one poll arrived together, however long the earlier ones of them take.
+  const double now = SteadyNowSeconds();
+  for (FrameRecord& record : follower_.PollFrames()) pending_.push_back({std::move(record), now});
+}
+
+QueryFrame FollowDriveSource::Header(const Pending& pending) {
+  QueryFrame frame;
+  frame.frame = pending.record.frame;
+  frame.timestamp_s = pending.record.timestamp_s;
+  frame.arrival_s = pending.arrival_s;
+  frame.where = follower_.manifest().FrameWhere(pending.record);
+  if (use_gnss_) {
+    if (const std::optional<PositionSample> fix = follower_.GnssAt(pending.record.timestamp_s)) {
+      frame.gnss = fix->position;
+    }
+  }
+  return frame;
+}
+
+std::optional<QueryFrame> FollowDriveSource::SkipStale(double max_age_s) {
+  Poll();
+  if (pending_.size() < 2 || SteadyNowSeconds() - pending_.front().arrival_s < max_age_s) {
+    return std::nullopt;
+  }
+  QueryFrame frame = Header(pending_.front());
+  pending_.pop_front();
+  return frame;
+}
+
 std::optional<QueryFrame> FollowDriveSource::Next() {
   const auto idle_since = Clock::now();
-  while (next_pending_ >= pending_.size()) {
-    pending_ = follower_.PollFrames();
-    next_pending_ = 0;
-    polled_at_s_ = SteadyNowSeconds();
+  for (;;) {
+    Poll();
     if (!pending_.empty()) break;
     if (std::chrono::duration<double>(Clock::now() - idle_since).count() > idle_timeout_s_) {
       return std::nullopt;
     }
     std::this_thread::sleep_for(std::chrono::duration<double>(poll_interval_s_));
   }
-  const FrameRecord& record = pending_[next_pending_++];
-  const Drive& manifest = follower_.manifest();
-  QueryFrame frame;
-  frame.frame = record.frame;
-  frame.timestamp_s = record.timestamp_s;
-  // Rows read in one poll arrived together, however long the earlier ones of them take.
-  frame.arrival_s = polled_at_s_;
-  frame.where = manifest.FrameWhere(record);
+  const Pending pending = std::move(pending_.front());
+  pending_.pop_front();
+  QueryFrame frame = Header(pending);
   const double read_start = SteadyNowSeconds();
-  frame.image = ReadFrameImage(manifest, record, false);
+  frame.image = ReadFrameImage(follower_.manifest(), pending.record, false);
   frame.read_seconds = SteadyNowSeconds() - read_start;
-  if (use_gnss_) {
-    if (const std::optional<PositionSample> fix = follower_.GnssAt(record.timestamp_s)) {
-      frame.gnss = fix->position;
-    }
-  }
   return frame;
 }
 

@@ -7,6 +7,7 @@
 #include <exception>
 #include <future>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -42,11 +43,18 @@ std::string FrameSubject(const std::string& where, frame_t frame) {
   return fmt::format("{}: frame {}", where, frame);
 }
 
-// Frames read and prepared ahead of the tracker, in order, at most `depth` at a time.
+// Frames read and prepared ahead of the tracker, in order, at most `depth` at a time. While the
+// queue is full, a live source is still polled, so that frames are stamped when they arrive; with
+// `max_latency_s` > 0, a frame already that late with a newer one arrived is dropped unread.
 class PrepareQueue {
  public:
-  PrepareQueue(const Localizer& localizer, FrameSource& source, int depth)
-      : localizer_(localizer), source_(source), depth_(depth) {
+  struct Entry {
+    std::future<PreparedFrame> prepared;
+    std::optional<QueryFrame> unread;  // a frame dropped unread (no image, no features)
+  };
+
+  PrepareQueue(const Localizer& localizer, FrameSource& source, int depth, double max_latency_s)
+      : localizer_(localizer), source_(source), depth_(depth), max_latency_s_(max_latency_s) {
     producer_ = std::thread([this] { Produce(); });
   }
   ~PrepareQueue() {
@@ -58,42 +66,66 @@ class PrepareQueue {
     producer_.join();
   }
 
-  // Whether a newer frame has arrived (read from the source) behind the one popped last.
+  // Whether a newer frame has arrived behind the one popped last (queued, or seen by the
+  // source's last poll).
   bool HasWaiting() {
     std::lock_guard<std::mutex> lock(mutex_);
-    return !queue_.empty();
+    return !queue_.empty() || arrived_ > 0;
   }
 
-  // The next prepared frame's future; none at the end of the input. Rethrows a source error.
-  std::optional<std::future<PreparedFrame>> Pop() {
+  // The next entry; none at the end of the input. Rethrows a source error.
+  std::optional<Entry> Pop() {
     std::unique_lock<std::mutex> lock(mutex_);
     changed_.wait(lock, [this] { return !queue_.empty() || done_; });
     if (queue_.empty()) {
       if (error_) std::rethrow_exception(error_);
       return std::nullopt;
     }
-    std::future<PreparedFrame> next = std::move(queue_.front());
+    Entry next = std::move(queue_.front());
     queue_.pop_front();
     changed_.notify_all();
     return next;
   }
 
  private:
+  // How often a live source is polled while the queue is full (the follow poll's interval).
+  static constexpr std::chrono::milliseconds kPollInterval{5};
+
   void Produce() {
     try {
       for (;;) {
         {
           std::unique_lock<std::mutex> lock(mutex_);
-          changed_.wait(lock, [this] { return static_cast<int>(queue_.size()) < depth_ || stop_; });
+          while (!stop_ && static_cast<int>(queue_.size()) >= depth_) {
+            if (changed_.wait_for(lock, kPollInterval) == std::cv_status::timeout) {
+              lock.unlock();
+              source_.Poll();
+              const int arrived = source_.NumArrived();
+              lock.lock();
+              arrived_ = arrived;
+            }
+          }
           if (stop_) break;
+        }
+        if (max_latency_s_ > 0) {
+          if (std::optional<QueryFrame> stale = source_.SkipStale(max_latency_s_)) {
+            const int arrived = source_.NumArrived();
+            std::lock_guard<std::mutex> lock(mutex_);
+            queue_.push_back({std::future<PreparedFrame>(), std::move(stale)});
+            arrived_ = arrived;
+            changed_.notify_all();
+            continue;
+          }
         }
         std::optional<QueryFrame> frame = source_.Next();
         if (!frame) break;
+        const int arrived = source_.NumArrived();
         std::future<PreparedFrame> prepared = std::async(
             std::launch::async, [this](const QueryFrame& f) { return localizer_.Prepare(f); },
             std::move(*frame));
         std::lock_guard<std::mutex> lock(mutex_);
-        queue_.push_back(std::move(prepared));
+        queue_.push_back({std::move(prepared), std::nullopt});
+        arrived_ = arrived;
         changed_.notify_all();
       }
     } catch (...) {
@@ -108,9 +140,11 @@ class PrepareQueue {
   const Localizer& localizer_;
   FrameSource& source_;
   int depth_;
+  double max_latency_s_;
   std::mutex mutex_;
   std::condition_variable changed_;
-  std::deque<std::future<PreparedFrame>> queue_;
+  std::deque<Entry> queue_;
+  int arrived_ = 0;  // the source's NumArrived() after its last call
   bool done_ = false, stop_ = false;
   std::exception_ptr error_;
   std::thread producer_;
@@ -128,9 +162,26 @@ LocalizeRun LocalizeStream(Localizer& localizer,
   std::vector<double> latencies;
   const int64_t total = std::max<int64_t>(0, source.size());
   {
-    PrepareQueue queue(localizer, source, std::max(1, localizer.options().num_threads));
-    while (std::optional<std::future<PreparedFrame>> next = queue.Pop()) {
-      const PreparedFrame prepared = next->get();
+    const double max_latency_s = localizer.options().max_latency_s;
+    PrepareQueue queue(localizer, source, std::max(1, localizer.options().num_threads),
+                       max_latency_s);
+    while (std::optional<PrepareQueue::Entry> next = queue.Pop()) {
+      if (next->unread) {
+        // Dropped before its extraction: late, with a newer frame arrived.
+        FrameEstimate skipped;
+        skipped.frame = next->unread->frame;
+        skipped.timestamp_s = next->unread->timestamp_s;
+        skipped.status = TrackStatus::kSkipped;
+        skipped.gnss = next->unread->gnss;
+        skipped.note = fmt::format("skipped unread: {:.0f} ms late, a newer frame arrived",
+                                   1e3 * (SteadyNowSeconds() - next->unread->arrival_s));
+        sink(&skipped, localizer.Rows(skipped));
+        ++run.num_frames;
+        ++run.num_skipped;
+        if (progress) progress(run.num_frames, std::max<int64_t>(total, run.num_frames));
+        continue;
+      }
+      const PreparedFrame prepared = next->prepared.get();
       if (prepared.features.size() == 0) {
         std::vector<frame_t>& none = run.frames_without_features;
         none.push_back(prepared.frame);
@@ -143,7 +194,6 @@ LocalizeRun LocalizeStream(Localizer& localizer,
                   : "");
         }
       }
-      const double max_latency_s = localizer.options().max_latency_s;
       if (max_latency_s > 0 && SteadyNowSeconds() - prepared.arrival_s >= max_latency_s &&
           queue.HasWaiting()) {
         FrameEstimate skipped;

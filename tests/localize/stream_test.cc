@@ -6,7 +6,9 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
+#include <thread>
 #include <map>
 #include <string>
 
@@ -14,6 +16,7 @@
 
 #include "epiloc/io/drive.h"
 #include "epiloc/io/frame_reader.h"
+#include "epiloc/localize/frame_source.h"
 #include "localize/localize_test_util.h"
 #include "test_util.h"
 
@@ -174,6 +177,58 @@ TEST(Stream, LateFramesAreSkippedWhenANewerOneWaits) {
       EXPECT_EQ(run.num_skipped, 0);
     }
   }
+}
+
+TEST(Stream, AFollowedDriveStampsFramesWhenTheyArriveAndDropsStaleOnesUnread) {
+  // Rows appended while the consumer is busy are stamped by Poll() when they appear, not when
+  // the consumer gets to them; SkipStale drops a frame that is late with a newer one waiting,
+  // without reading its image, and keeps the newest.
+  namespace fs = std::filesystem;
+  const std::string world = Route();
+  const Drive query = LoadDrive(world + "/query");
+  ASSERT_GE(query.frames.size(), 3u);
+  TempDir tmp;
+  const fs::path drive = tmp / "growing";
+  fs::create_directories(drive);
+  fs::copy_file(fs::path(world) / "query" / "drive.json", drive / "drive.json");
+  fs::create_directory_symlink(fs::path(world) / "query" / "images", drive / "images");
+  std::ofstream frames(drive / "frames.csv");
+  frames << "frame,timestamp_s,image\n" << std::flush;
+  std::ofstream gnss(drive / "gnss.csv");
+  gnss << "timestamp_s,lat_deg,lon_deg,alt_m\n" << std::flush;
+  const auto append = [&](size_t i) {
+    frames << query.frames[i].frame << "," << query.frames[i].timestamp_s << ","
+           << query.frames[i].image << "\n"
+           << std::flush;
+  };
+  FollowDriveSource source(drive.string(), /*use_gnss=*/false, /*idle_timeout_s=*/1.0);
+  EXPECT_FALSE(source.SkipStale(0.0)) << "nothing has arrived";
+  append(0);
+  append(1);
+  const double appended_s = SteadyNowSeconds();
+  source.Poll();  // the consumer is busy: the rows are only noted
+  const double polled_s = SteadyNowSeconds();
+  std::this_thread::sleep_for(std::chrono::milliseconds(60));
+  EXPECT_FALSE(source.SkipStale(1.0)) << "not that late yet";
+  const std::optional<QueryFrame> stale = source.SkipStale(0.05);
+  ASSERT_TRUE(stale);
+  EXPECT_EQ(stale->frame, query.frames[0].frame);
+  EXPECT_TRUE(stale->image.empty()) << "dropped unread";
+  EXPECT_GE(stale->arrival_s, appended_s);
+  EXPECT_LE(stale->arrival_s, polled_s) << "stamped by the poll, not when it was taken";
+  EXPECT_FALSE(source.SkipStale(0.05)) << "the newest frame is never dropped";
+  const std::optional<QueryFrame> newest = source.Next();
+  ASSERT_TRUE(newest);
+  EXPECT_EQ(newest->frame, query.frames[1].frame);
+  EXPECT_FALSE(newest->image.empty());
+  EXPECT_LE(newest->arrival_s, polled_s);
+  EXPECT_GE(SteadyNowSeconds() - newest->arrival_s, 0.06);
+  append(2);
+  const std::optional<QueryFrame> third = source.Next();
+  ASSERT_TRUE(third);
+  EXPECT_EQ(third->frame, query.frames[2].frame);
+  EXPECT_GE(third->arrival_s, polled_s);
+  EXPECT_FALSE(source.Next()) << "ends after the idle timeout";
 }
 
 TEST(Stream, MemoryStaysFlatOverALongStream) {

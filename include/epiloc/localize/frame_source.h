@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
@@ -26,6 +27,16 @@ class FrameSource {
   // The next frame, waiting for it if the source is live; none at the end of the input. Throws
   // Error for an unreadable frame.
   virtual std::optional<QueryFrame> Next() = 0;
+  // Live sources: notes the frames that have arrived since the last call, with their arrival
+  // time, without reading them (LocalizeStream calls it while its queue is full, so that a
+  // frame's latency counts from its arrival, not from when there was room for it).
+  virtual void Poll() {}
+  // Live sources: when the next frame arrived `max_age_s` or more ago and a newer one has
+  // arrived too, drops it unread and returns its frame number, time, arrival and GNSS (no image):
+  // a frame that late is skipped before its extraction costs time. Else none.
+  virtual std::optional<QueryFrame> SkipStale(double /*max_age_s*/) { return std::nullopt; }
+  // Live sources: frames that have arrived (seen by the last poll) and not been delivered yet.
+  virtual int NumArrived() const { return 0; }
   // Number of frames when known in advance (progress), else -1.
   virtual int64_t size() const { return -1; }
   // Name for messages (the drive directory, the video).
@@ -62,17 +73,26 @@ class FollowDriveSource : public FrameSource {
                     double poll_interval_s = 0.005);
   const Camera& camera() const override { return follower_.manifest().camera; }
   std::optional<QueryFrame> Next() override;
+  void Poll() override;
+  std::optional<QueryFrame> SkipStale(double max_age_s) override;
+  int NumArrived() const override { return static_cast<int>(pending_.size()); }
   std::string name() const override { return follower_.manifest().dir; }
 
  private:
+  // A row seen in the frames CSV, not delivered yet, and when the poll saw it (its arrival:
+  // latency counts from it).
+  struct Pending {
+    FrameRecord record;
+    double arrival_s = 0.0;
+  };
+  // The frame without its image: number, time, arrival, where, GNSS.
+  QueryFrame Header(const Pending& pending);
+
   DriveFollower follower_;
   bool use_gnss_;
   double idle_timeout_s_;
   double poll_interval_s_;
-  std::vector<FrameRecord> pending_;
-  size_t next_pending_ = 0;
-  double polled_at_s_ =
-      0.0;  // when pending_ was read: the frames' arrival (latency counts from it)
+  std::deque<Pending> pending_;
 };
 
 struct VideoSourceOptions {
