@@ -89,4 +89,23 @@ void ExpectError(Function&& function, const std::vector<std::string>& parts) {
   }
 }
 
+// A drive directory another program is still writing: `source`'s manifest and images (linked),
+// frames.csv and gnss.csv with their header rows only; the test appends rows to `frames` and
+// `gnss` (flushing each) as a recorder would.
+struct GrowingDrive {
+  GrowingDrive(const std::filesystem::path& source, const std::filesystem::path& dir)
+      : dir(dir) {
+    std::filesystem::create_directories(dir);
+    std::filesystem::copy_file(source / "drive.json", dir / "drive.json");
+    std::filesystem::create_directory_symlink(source / "images", dir / "images");
+    frames.open(dir / "frames.csv");
+    frames << "frame,timestamp_s,image\n" << std::flush;
+    gnss.open(dir / "gnss.csv");
+    gnss << "timestamp_s,lat_deg,lon_deg,alt_m\n" << std::flush;
+  }
+  std::filesystem::path dir;
+  std::ofstream frames;
+  std::ofstream gnss;
+};
+
 }  // namespace epiloc

@@ -165,20 +165,27 @@ LocalizeRun LocalizeStream(Localizer& localizer,
     const double max_latency_s = localizer.options().max_latency_s;
     PrepareQueue queue(localizer, source, std::max(1, localizer.options().num_threads),
                        max_latency_s);
+    // A skipped frame's rows (status skipped), counted with its extraction time if it had one.
+    const auto skip = [&](FrameEstimate skipped, const std::string& note) {
+      skipped.status = TrackStatus::kSkipped;
+      skipped.note = note;
+      sink(&skipped, localizer.Rows(skipped));
+      ++run.num_frames;
+      ++run.num_skipped;
+      run.extraction_seconds += skipped.extraction_seconds;
+      run.stages += skipped.stages;
+      if (progress) progress(run.num_frames, std::max<int64_t>(total, run.num_frames));
+    };
     while (std::optional<PrepareQueue::Entry> next = queue.Pop()) {
       if (next->unread) {
         // Dropped before its extraction: late, with a newer frame arrived.
         FrameEstimate skipped;
         skipped.frame = next->unread->frame;
         skipped.timestamp_s = next->unread->timestamp_s;
-        skipped.status = TrackStatus::kSkipped;
         skipped.gnss = next->unread->gnss;
-        skipped.note = fmt::format("skipped unread: {:.0f} ms late, a newer frame arrived",
-                                   1e3 * (SteadyNowSeconds() - next->unread->arrival_s));
-        sink(&skipped, localizer.Rows(skipped));
-        ++run.num_frames;
-        ++run.num_skipped;
-        if (progress) progress(run.num_frames, std::max<int64_t>(total, run.num_frames));
+        skip(std::move(skipped),
+             fmt::format("skipped unread: {:.0f} ms late, a newer frame arrived",
+                         1e3 * (SteadyNowSeconds() - next->unread->arrival_s)));
         continue;
       }
       const PreparedFrame prepared = next->prepared.get();
@@ -199,18 +206,11 @@ LocalizeRun LocalizeStream(Localizer& localizer,
         FrameEstimate skipped;
         skipped.frame = prepared.frame;
         skipped.timestamp_s = prepared.timestamp_s;
-        skipped.status = TrackStatus::kSkipped;
         skipped.gnss = prepared.gnss;
         skipped.extraction_seconds = prepared.extraction_seconds;
         skipped.stages = prepared.stages;
-        skipped.note = fmt::format("skipped: {:.0f} ms late, a newer frame waiting",
-                                   1e3 * (SteadyNowSeconds() - prepared.arrival_s));
-        sink(&skipped, localizer.Rows(skipped));
-        ++run.num_frames;
-        ++run.num_skipped;
-        run.extraction_seconds += skipped.extraction_seconds;
-        run.stages += skipped.stages;
-        if (progress) progress(run.num_frames, std::max<int64_t>(total, run.num_frames));
+        skip(std::move(skipped), fmt::format("skipped: {:.0f} ms late, a newer frame waiting",
+                                             1e3 * (SteadyNowSeconds() - prepared.arrival_s)));
         continue;
       }
       FrameEstimate estimate = localizer.Track(prepared);

@@ -41,14 +41,10 @@ TEST(LocalizeLive, FollowAGrowingDriveGivesRowsBeforeTheInputEnds) {
   const std::string world = World();
   const Drive query = LoadDrive(world + "/query");
   TempDir tmp;
-  const fs::path drive = tmp / "growing";
-  fs::create_directories(drive);
-  fs::copy_file(fs::path(world) / "query" / "drive.json", drive / "drive.json");
-  fs::create_directory_symlink(fs::path(world) / "query" / "images", drive / "images");
-  std::ofstream frames(drive / "frames.csv");
-  frames << "frame,timestamp_s,image\n" << std::flush;
-  std::ofstream gnss(drive / "gnss.csv");
-  gnss << "timestamp_s,lat_deg,lon_deg,alt_m\n" << std::flush;
+  GrowingDrive growing(fs::path(world) / "query", tmp / "growing");
+  const fs::path& drive = growing.dir;
+  std::ofstream& frames = growing.frames;
+  std::ofstream& gnss = growing.gnss;
   size_t next_gnss = 0;
   const auto append = [&](size_t i) {
     // GNSS up to the frame's time, as a receiver delivers it; then the frame row (its image

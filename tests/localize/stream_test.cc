@@ -188,20 +188,13 @@ TEST(Stream, AFollowedDriveStampsFramesWhenTheyArriveAndDropsStaleOnesUnread) {
   const Drive query = LoadDrive(world + "/query");
   ASSERT_GE(query.frames.size(), 3u);
   TempDir tmp;
-  const fs::path drive = tmp / "growing";
-  fs::create_directories(drive);
-  fs::copy_file(fs::path(world) / "query" / "drive.json", drive / "drive.json");
-  fs::create_directory_symlink(fs::path(world) / "query" / "images", drive / "images");
-  std::ofstream frames(drive / "frames.csv");
-  frames << "frame,timestamp_s,image\n" << std::flush;
-  std::ofstream gnss(drive / "gnss.csv");
-  gnss << "timestamp_s,lat_deg,lon_deg,alt_m\n" << std::flush;
+  GrowingDrive drive(fs::path(world) / "query", tmp / "growing");
   const auto append = [&](size_t i) {
-    frames << query.frames[i].frame << "," << query.frames[i].timestamp_s << ","
+    drive.frames << query.frames[i].frame << "," << query.frames[i].timestamp_s << ","
            << query.frames[i].image << "\n"
            << std::flush;
   };
-  FollowDriveSource source(drive.string(), /*use_gnss=*/false, /*idle_timeout_s=*/1.0);
+  FollowDriveSource source(drive.dir.string(), /*use_gnss=*/false, /*idle_timeout_s=*/1.0);
   EXPECT_FALSE(source.SkipStale(0.0)) << "nothing has arrived";
   append(0);
   append(1);
