@@ -150,8 +150,14 @@ int RunLocalize(int argc, char** argv) {
                  "search per query/database pair (slower, reference)")
       ->check(CLI::IsMember({"window", "pairs"}))
       ->capture_default_str();
+  app.add_option(
+         "--window-checks", options.pairs.window_checks,
+         "Distances computed per query descriptor over the tracking window (speed / recall)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--match-checks", options.pairs.match.num_checks,
-                 "FLANN leaves visited per descriptor search (speed / recall)")
+                 "With --matcher pairs: distances computed per descriptor search (speed / recall)")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--max-db-features", options.pairs.max_db_features,
                  "Strongest database features per frame")

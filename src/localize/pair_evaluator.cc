@@ -15,7 +15,9 @@ void PairOptions::Check() const {
   EPILOC_CHECK(max_db_features >= 0, "localize: max_db_features must be >= 0");
   EPILOC_CHECK(min_db_feature_angle_rad >= 0, "localize: min_db_feature_angle_rad must be >= 0");
   EPILOC_CHECK(cache_frames >= 1, "localize: cache_frames must be >= 1");
+  EPILOC_CHECK(window_checks >= 1, "localize: window_checks must be >= 1, got {}", window_checks);
   match.Check();
+  window.Check();
   epipole.Check();
 }
 
@@ -209,7 +211,7 @@ std::vector<PairResult> PairEvaluator::EvaluateWindow(const Camera& query_camera
   const Clock::time_point start = Clock::now();
   if (window_seconds) *window_seconds += std::chrono::duration<double>(start - window_start).count();
   const std::unordered_map<int, std::vector<WindowMatch>> matches = window_matcher_.Match(
-      query.descriptors, -1, options_.match.ratio, options_.match.num_checks, num_threads);
+      query.descriptors, -1, options_.match.ratio, options_.window_checks, num_threads);
   const Clock::time_point matched = Clock::now();
   std::vector<PairResult> results(db_indices.size());
   ParallelFor(static_cast<int64_t>(db_indices.size()), num_threads, [&](int64_t k) {

@@ -14,6 +14,7 @@ namespace epiloc {
 
 void WindowMatcherOptions::Check() const {
   EPILOC_CHECK(num_trees >= 1, "window matcher: num_trees must be >= 1, got {}", num_trees);
+  EPILOC_CHECK(leaf_size >= 1, "window matcher: leaf_size must be >= 1, got {}", leaf_size);
   EPILOC_CHECK(max_neighbors >= 2, "window matcher: max_neighbors must be >= 2, got {}",
                max_neighbors);
   EPILOC_CHECK(rebuild_fraction > 0 && rebuild_fraction < 1,
@@ -24,7 +25,8 @@ namespace {
 
 using RootSift = std::vector<float>;
 
-// The forest keeps pointers into the buffers it indexes, not copies.
+// A window frame's RootSIFT rows, kept for the next full build (the forest holds its own 8-bit
+// copy).
 struct Frame {
   std::shared_ptr<const RootSift> buffer;  // owns `rows`
   const float* rows = nullptr;             // num_rows x 128
@@ -47,9 +49,6 @@ struct WindowMatcher::Impl {
   // Forest point id -> (frame slot, row) for every point added since the last full build. The
   // forest numbers points in insertion order and keeps the numbers across removals.
   std::vector<PointRef> points;
-  // Every buffer the index points into, removed frames' too: insertion into a leaf reads the
-  // leaf's point even when it was removed, so a buffer lives until the next full build.
-  std::vector<std::shared_ptr<const RootSift>> buffers;
   size_t num_removed = 0;  // removed points still in the trees
   size_t built_size = 0;   // points at the last full build
   int rebuilds = 0;
@@ -78,7 +77,7 @@ struct WindowMatcher::Impl {
 
   // Full build over `window` (which becomes the window): its rows, in database index order, in
   // one contiguous block.
-  void Build(std::map<int, Frame> window, int num_trees) {
+  void Build(std::map<int, Frame> window, int num_trees, int leaf_size) {
     index.reset();
     size_t rows = 0;
     for (const auto& [db_index, frame] : window) rows += static_cast<size_t>(frame.num_rows);
@@ -95,11 +94,10 @@ struct WindowMatcher::Impl {
       offset += static_cast<size_t>(frame.num_rows) * 128;
     }
     frames = std::move(window);
-    buffers.assign(1, block);
     num_removed = 0;
     built_size = points.size();
     if (!points.empty()) {
-      index = std::make_unique<KdForest>(num_trees);
+      index = std::make_unique<KdForest>(num_trees, KdForest::kDefaultSeed, leaf_size);
       index->Build(block->data(), points.size());
     }
     ++rebuilds;
@@ -167,7 +165,6 @@ void WindowMatcher::SetWindow(const std::vector<int>& db_indices, const LoadFn& 
       impl.AppendPoints(frame);
       if (frame.num_rows > 0) {
         impl.index->Add(frame.rows, static_cast<size_t>(frame.num_rows));
-        impl.buffers.push_back(frame.buffer);
       }
       impl.frames.emplace(db_index, std::move(frame));
     }
@@ -175,7 +172,7 @@ void WindowMatcher::SetWindow(const std::vector<int>& db_indices, const LoadFn& 
   }
   for (int db_index : leaving) impl.frames.erase(db_index);
   entering.merge(impl.frames);
-  impl.Build(std::move(entering), options_.num_trees);
+  impl.Build(std::move(entering), options_.num_trees, options_.leaf_size);
 }
 
 bool WindowMatcher::RebuildDue() const {
@@ -187,7 +184,7 @@ bool WindowMatcher::RebuildDue() const {
 void WindowMatcher::Rebuild() {
   Impl& impl = *impl_;
   std::map<int, Frame> window = std::move(impl.frames);
-  impl.Build(std::move(window), options_.num_trees);
+  impl.Build(std::move(window), options_.num_trees, options_.leaf_size);
 }
 
 std::vector<int> WindowMatcher::Window() const {
