@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 
 #include "epiloc/core/error.h"
@@ -75,6 +76,8 @@ const char* PairVerdictName(PairVerdict verdict) {
       return "weak support";
     case PairVerdict::kInconsistent:
       return "inconsistent with its neighbours";
+    case PairVerdict::kTurnedAway:
+      return "turned away from the database camera";
   }
   return "?";
 }
@@ -82,7 +85,8 @@ const char* PairVerdictName(PairVerdict verdict) {
 AlongTrackMeasurement MeasureAlongTrack(const std::vector<PairResult>& pairs,
                                         const std::vector<double>& db_s_m,
                                         double focal_px,
-                                        const EvidenceOptions& options) {
+                                        const EvidenceOptions& options,
+                                        double max_heading_deg) {
   AlongTrackMeasurement out;
   out.verdicts.assign(pairs.size(), PairVerdict::kFailed);
   int best_inliers = 0;
@@ -93,6 +97,10 @@ AlongTrackMeasurement MeasureAlongTrack(const std::vector<PairResult>& pairs,
   for (size_t k = 0; k < pairs.size(); ++k) {
     const PairResult& p = pairs[k];
     if (!p.valid) continue;
+    if (std::abs(p.heading_deg) > max_heading_deg) {
+      out.verdicts[k] = PairVerdict::kTurnedAway;
+      continue;
+    }
     if (p.num_inliers < options.min_relative_support * best_inliers) {
       out.verdicts[k] = PairVerdict::kWeakSupport;
       continue;
@@ -186,7 +194,38 @@ AlongTrackMeasurement MeasureAlongTrack(const std::vector<PairResult>& pairs,
   // Var(l) = σ² / A² (1 / Σw + (l - s̄)² / Sxx), σ² the residual scale (never below 1).
   const double var = std::max(1.0, scale2) / (line.a * line.a) *
                      (1.0 / sum_w + (line.l - mean_s) * (line.l - mean_s) / sxx);
-  out.sigma_m = std::sqrt(var + options.floor_sigma_m * options.floor_sigma_m);
+  // No single pair may decide the position: the jackknife's variance of l over the fits that
+  // leave one used pair out (Efron & Stein) is a floor of the model's. A wrong essential matrix
+  // with a confident direction (repeated texture, a camera turned away from the database's view)
+  // is consistent with a line through pairs far ahead, whose directions say little; without it
+  // the line lands elsewhere. A fit that needs every pair to exist at all has no jackknife.
+  double jackknife_var = 0.0;
+  if (used.size() >= 3) {
+    std::vector<double> ls;
+    std::vector<Point> rest;
+    for (size_t i = 0; i < used.size(); ++i) {
+      rest.assign(used.begin(), used.end());
+      rest.erase(rest.begin() + static_cast<std::ptrdiff_t>(i));
+      Line without;
+      double w = 0.0, m = 0.0, x = 0.0;
+      if (!FitWeighted(rest, &without, &w, &m, &x)) {
+        ls.clear();
+        jackknife_var = std::numeric_limits<double>::infinity();
+        break;
+      }
+      ls.push_back(without.l);
+    }
+    if (!ls.empty()) {
+      double mean = 0.0;
+      for (const double l : ls) mean += l;
+      mean /= static_cast<double>(ls.size());
+      for (const double l : ls) jackknife_var += (l - mean) * (l - mean);
+      jackknife_var *= static_cast<double>(ls.size() - 1) / static_cast<double>(ls.size());
+    }
+  }
+  out.model_sigma_m = std::sqrt(var + options.floor_sigma_m * options.floor_sigma_m);
+  out.sigma_m =
+      std::sqrt(std::max(var, jackknife_var) + options.floor_sigma_m * options.floor_sigma_m);
   // Each pair's sign says on which side of the vehicle its camera is. A line whose intercept puts
   // a camera on the other side (farther than 2 sigma of l: beside the vehicle the sign is
   // uncertain) contradicts the pairs it was fitted to: nearly equal u on one side (the vehicle

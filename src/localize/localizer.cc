@@ -273,6 +273,9 @@ Localizer::Impl::Impl(const std::string& path, const Camera& camera, const Local
   }
 
   const Camera& query_camera = undistorter.undistorted_camera();
+  max_pair_heading_deg =
+      std::atan(std::min(query_camera.cx, query_camera.width - query_camera.cx) / query_camera.fx) *
+      180.0 / M_PI;
   PairOptions pair_options = options.pairs;
   if (pair_options.min_db_feature_angle_rad == 0) {
     // Database features finer than 3/4 of the finest the query extraction detects cannot match
@@ -427,11 +430,11 @@ PoseRefinement Localizer::Impl::Refine(const PreparedFrame& query,
 
 void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
   // sigma_m weighs the measurement; gate_sigma_m (<= sigma_m) decides whether it agrees with
-  // the track or the other measurement. They differ for a 6-DoF pose: its sigma is the larger
-  // of the PnP model's and the jackknife's (errors shared by a region of the image), and it is
-  // gated with the model's alone, so a pose must agree with the track even at the precision its
-  // pixels claim. A weak pose far off (a big jackknife sigma) is refused, not taken in with a
-  // weight that barely moves the track and then reported as a pose.
+  // the track or the other measurement. Each sigma is the larger of the model's and the
+  // jackknife's (6-DoF: errors shared by a region of the image; epipolar: one pair deciding the
+  // line), and each is gated with the model's alone, so a measurement must agree with the track
+  // even at the precision it claims. A weak one far off (a big jackknife sigma) is refused, not
+  // taken in with a weight that barely moves the track and then reported.
   struct Measurement {
     double s_m, sigma_m, gate_sigma_m;
     bool* accepted;
@@ -439,7 +442,7 @@ void Localizer::Impl::Fuse(double t, FrameEstimate* est) {
   };
   std::vector<Measurement> measurements;
   if (est->epipolar.valid) {
-    measurements.push_back({est->epipolar.l_m, est->epipolar.sigma_m, est->epipolar.sigma_m,
+    measurements.push_back({est->epipolar.l_m, est->epipolar.sigma_m, est->epipolar.model_sigma_m,
                             &est->epipolar_accepted, "epipolar"});
   }
   if (est->refined && est->refined->status == RefineStatus::kOk) {
@@ -685,7 +688,7 @@ FrameEstimate Localizer::Track(const PreparedFrame& query) {
   }
   // Evidence: the epipolar measurement over the pairs that count, and the 6-DoF pose.
   est.epipolar = MeasureAlongTrack(pairs, impl.db_s, impl.undistorter.undistorted_camera().fx,
-                                   options.evidence);
+                                   options.evidence, impl.max_pair_heading_deg);
   if (filter.initialised() && !pairs.empty() && !est.epipolar.valid &&
       !est.epipolar.failure.empty()) {
     AddNote(&est.note, "no epipolar measurement: " + est.epipolar.failure);

@@ -60,6 +60,9 @@ struct Localizer::Impl {
   std::vector<DbFrame> db_frames;  // route order (by s)
   std::vector<double> db_s;
   double min_window_spacing_m = 0.0;
+  // Epipolar pairs whose cameras' headings differ by more than this are no evidence: half the
+  // query camera's horizontal field of view (the narrower side of the principal point).
+  double max_pair_heading_deg = 180.0;
   bool refine = false;
   std::unique_ptr<PairEvaluator> evaluator;
   std::optional<GlobalDescriptorModel> retrieval_model;

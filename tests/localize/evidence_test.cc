@@ -185,5 +185,67 @@ TEST(Evidence, SigmaIsCalibratedUnderTheModelsNoise) {
   EXPECT_LE(share, 0.995);
 }
 
+// A frame 13.8 m before the route's first camera sees every camera far ahead: their directions
+// (large u, large sigma) fix no position. One wrong essential matrix with a confident direction
+// (u = -1 at the first camera, 13 degrees of parallax: repeated texture) lies on a line through
+// all of them, and alone would place the frame at the route's start with a sigma of 0.13 m. The
+// pairs are those of a frame of the scenario suite (synth_beyond_ends) that did.
+TEST(Evidence, OnePairDoesNotDecideThePosition) {
+  struct Row {
+    double s, u, parallax_deg;
+    int inliers;
+  };
+  const std::vector<Row> rows = {{0.0, -0.9695, 13.335, 22}, {0.8, 14.705, 1.150, 26},
+                                 {3.2, 19.996, 1.004, 22},   {4.0, 21.668, 1.158, 23},
+                                 {4.8, -1.675, 17.739, 21},  {5.6, 18.414, 1.352, 20}};
+  Street street;
+  for (const Row& row : rows) {
+    PairResult p;
+    p.db_index = static_cast<int>(street.db_s.size());
+    p.valid = true;
+    p.num_inliers = row.inliers;
+    p.num_matches = 2 * row.inliers;
+    p.parallax_deg = row.parallax_deg;
+    p.signed_cot = row.u;
+    street.db_s.push_back(row.s);
+    street.pairs.push_back(p);
+  }
+  const AlongTrackMeasurement m =
+      MeasureAlongTrack(street.pairs, street.db_s, 600.0, EvidenceOptions());
+  ASSERT_EQ(m.verdicts[0], PairVerdict::kUsed) << "the wrong pair fits the line: the case tested";
+  ASSERT_TRUE(m.valid) << m.failure;  // a measurement, with an honest sigma
+  EXPECT_LT(m.model_sigma_m, 0.3) << "the fit's own sigma trusts the wrong pair";
+  EXPECT_NEAR(m.l_m, 0.2, 0.1);  // the wrong pair's position
+  EXPECT_GT(m.sigma_m, 2.0);
+  EXPECT_LE(std::abs(m.l_m + 13.8), 3 * m.sigma_m) << "sigma " << m.sigma_m;
+}
+
+// Agreeing pairs keep the fit's sigma: the jackknife adds nothing where no pair stands out.
+TEST(Evidence, AgreeingPairsKeepTheModelSigma) {
+  const Street street = MakeStreet(4.3, 1.5);
+  const AlongTrackMeasurement m =
+      MeasureAlongTrack(street.pairs, street.db_s, kFocal, EvidenceOptions());
+  ASSERT_TRUE(m.valid) << m.failure;
+  EXPECT_NEAR(m.sigma_m, m.model_sigma_m, 1e-12);
+}
+
+// A camera turned by more than the gate (a car turning into the street) gives no evidence.
+TEST(Evidence, PairsTurnedAwayAreNoEvidence) {
+  Street street = MakeStreet(4.3, 1.5);
+  for (int k : {3, 4, 5}) street.pairs[k].heading_deg = (k == 4 ? -70.0 : 55.0);
+  street.pairs[4].signed_cot = -0.5;  // and wrong: it would move the line
+  const AlongTrackMeasurement gated =
+      MeasureAlongTrack(street.pairs, street.db_s, kFocal, EvidenceOptions(), 40.0);
+  ASSERT_TRUE(gated.valid) << gated.failure;
+  for (int k : {3, 4, 5}) EXPECT_EQ(gated.verdicts[k], PairVerdict::kTurnedAway) << k;
+  EXPECT_EQ(gated.num_used, 6);
+  EXPECT_NEAR(gated.l_m, 4.3, 1e-9);
+  EXPECT_STREQ(PairVerdictName(PairVerdict::kTurnedAway), "turned away from the database camera");
+  // Without the gate (the default) the turned pairs count.
+  const AlongTrackMeasurement open =
+      MeasureAlongTrack(street.pairs, street.db_s, kFocal, EvidenceOptions());
+  EXPECT_EQ(open.verdicts[3], PairVerdict::kUsed);
+}
+
 }  // namespace
 }  // namespace epiloc

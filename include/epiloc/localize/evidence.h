@@ -25,7 +25,8 @@
 //
 // Uncertainty: weighted least squares on the consistent pairs; l = x-intercept, its variance from
 // the fit's covariance scaled by the larger of 1 and the residuals' own scale (the a-priori σ_φ
-// is never trusted to be pessimistic), plus `floor_sigma_m` (database positions).
+// is never trusted to be pessimistic), or the jackknife's over the fits leaving one pair out if
+// larger (no single pair decides the position), plus `floor_sigma_m` (database positions).
 #pragma once
 
 #include <string>
@@ -68,6 +69,7 @@ enum class PairVerdict {
   kFailed,        // no essential matrix (PairResult::failure says why)
   kWeakSupport,   // fewer inliers than min_relative_support of the window's best
   kInconsistent,  // off the line through the other pairs (degenerate epipole, wrong side)
+  kTurnedAway,    // the two cameras' headings differ by more than max_heading_deg
 };
 const char* PairVerdictName(PairVerdict verdict);
 
@@ -75,7 +77,8 @@ struct AlongTrackMeasurement {
   bool valid = false;
   std::string failure;            // why not valid
   double l_m = 0.0;               // the query's along-route position
-  double sigma_m = 0.0;           // its standard deviation
+  double sigma_m = 0.0;           // its standard deviation (the larger of the two below)
+  double model_sigma_m = 0.0;     // from the fit's covariance alone (plus the floor)
   double lateral_offset_m = 0.0;  // |Δy| = 1/A
   double residual_scale = 0.0;    // RMS of the used pairs' residuals in units of their σ
   int num_used = 0;
@@ -85,10 +88,15 @@ struct AlongTrackMeasurement {
 
 // The measurement from the pairs of one query frame; `db_s_m[p.db_index]` is the along-route
 // distance of each pair's database frame, `focal_px` the query camera's fx (of the undistorted
-// image the pairs were evaluated on). Deterministic.
+// image the pairs were evaluated on). A pair whose cameras' headings differ by more than
+// `max_heading_deg` (PairResult::heading_deg) is no evidence (kTurnedAway): the model's cameras
+// look along the route, and the localizer passes half the query camera's horizontal field of
+// view, beyond which the two share less than half their views (a car turning into the street,
+// whose few matches a wrong essential matrix fits as well as the right one). Deterministic.
 AlongTrackMeasurement MeasureAlongTrack(const std::vector<PairResult>& pairs,
                                         const std::vector<double>& db_s_m,
                                         double focal_px,
-                                        const EvidenceOptions& options);
+                                        const EvidenceOptions& options,
+                                        double max_heading_deg = 180.0);
 
 }  // namespace epiloc
