@@ -49,8 +49,10 @@ with open(os.path.join(dst, "frames.csv"), "w") as f:
     f.write(frames[0] + "\n")
 with open(os.path.join(dst, "gnss.csv"), "w") as f:
     f.write(gnss[0] + "\n")
-with open(os.path.join(dst, "drive.json"), "w") as f:
+# The manifest last, whole (the follower waits for it and reads it at once).
+with open(os.path.join(dst, "drive.json.tmp"), "w") as f:
     json.dump(manifest, f)
+os.replace(os.path.join(dst, "drive.json.tmp"), os.path.join(dst, "drive.json"))
 g = 1
 start = time.monotonic()
 for i, row in enumerate(frames[1:]):
@@ -73,8 +75,16 @@ for max_latency in 0 0.1; do
   "$epiloc" localize --db "$work/route.sqlite" --drive "$live" --follow --idle-timeout-s 3 \
     --threads "$threads" --max-latency-s "$max_latency" --out "$work/live.csv" \
     > "$work/live.log" 2>&1
-  wait "$feeder"
-  latency=$(grep -oE 'latency p50 [0-9]+ ms, p95 [0-9]+ ms, max [0-9]+ ms' "$work/live.log" | head -1)
+  feeder_status=0
+  wait "$feeder" || feeder_status=$?
+  latency=$(grep -oE 'latency p50 [0-9]+ ms, p95 [0-9]+ ms, max [0-9]+ ms' "$work/live.log" | head -1 ||
+    true)
+  if [[ -z $latency ]]; then
+    # Say what the follow run and the feeder printed.
+    echo "bench: the --follow run printed no latency (feeder exit $feeder_status); its log:" >&2
+    tail -n 5 "$work/live.log" >&2
+    latency="no latency"
+  fi
   skipped=$(grep -oE '[0-9]+ late frames skipped' "$work/live.log" || echo "0 late frames skipped")
   echo "  follow  10 Hz input (77 frames written as recorded), --max-latency-s $max_latency:" \
     "$latency (target p95 <= 100 ms); $skipped"

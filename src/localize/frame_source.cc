@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <filesystem>
 #include <thread>
 
 #include <opencv2/videoio.hpp>
@@ -13,6 +14,23 @@ namespace epiloc {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// A drive being recorded may not have its manifest yet when the follower starts (the recorder
+// starting a moment later): it waits for drive.json up to `timeout_s`, then lets the follower
+// report it missing. Returns `drive_dir`.
+const std::string& AwaitManifest(const std::string& drive_dir,
+                                 double timeout_s,
+                                 double poll_interval_s) {
+  const std::filesystem::path manifest = std::filesystem::path(drive_dir) / "drive.json";
+  const auto start = Clock::now();
+  std::error_code error;
+  while (!(std::filesystem::is_regular_file(manifest, error) &&
+           std::filesystem::file_size(manifest, error) > 0) &&
+         std::chrono::duration<double>(Clock::now() - start).count() < timeout_s) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(std::max(poll_interval_s, 0.01)));
+  }
+  return drive_dir;
+}
 
 bool IsDeviceNumber(const std::string& text) {
   return !text.empty() && text.size() < 4 &&
@@ -55,7 +73,7 @@ FollowDriveSource::FollowDriveSource(const std::string& drive_dir,
                                      bool use_gnss,
                                      double idle_timeout_s,
                                      double poll_interval_s)
-    : follower_(drive_dir),
+    : follower_(AwaitManifest(drive_dir, idle_timeout_s, poll_interval_s)),
       use_gnss_(use_gnss),
       idle_timeout_s_(idle_timeout_s),
       poll_interval_s_(poll_interval_s) {

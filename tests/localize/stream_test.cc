@@ -224,6 +224,36 @@ TEST(Stream, AFollowedDriveStampsFramesWhenTheyArriveAndDropsStaleOnesUnread) {
   EXPECT_FALSE(source.Next()) << "ends after the idle timeout";
 }
 
+TEST(Stream, AFollowedDriveMayGetItsManifestAMomentLater) {
+  // The recorder starts after the localizer: the follower waits for drive.json (up to the idle
+  // timeout), and says it is missing when it does not come.
+  namespace fs = std::filesystem;
+  const std::string world = Route();
+  TempDir tmp;
+  const fs::path dir = tmp / "late";
+  fs::create_directories(dir);
+  std::ofstream(dir / "frames.csv") << "frame,timestamp_s,image\n";
+  std::thread recorder([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    fs::copy_file(fs::path(world) / "query" / "drive.json", dir / "drive.json.tmp");
+    fs::rename(dir / "drive.json.tmp", dir / "drive.json");
+  });
+  const double start_s = SteadyNowSeconds();
+  FollowDriveSource source(dir.string(), /*use_gnss=*/false, /*idle_timeout_s=*/5.0);
+  recorder.join();
+  EXPECT_GE(SteadyNowSeconds() - start_s, 0.1);
+  EXPECT_GT(source.camera().width, 0);
+
+  const fs::path none = tmp / "never";
+  fs::create_directories(none);
+  try {
+    FollowDriveSource missing(none.string(), false, /*idle_timeout_s=*/0.2);
+    ADD_FAILURE() << "no manifest, no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("drive.json"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Stream, MemoryStaysFlatOverALongStream) {
   const std::string dir = Route();
   const Drive drive = LoadDrive(dir + "/query");

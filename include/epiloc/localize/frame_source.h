@@ -63,7 +63,8 @@ class DriveFrameSource : public FrameSource {
 
 // A drive directory another program is still writing (DriveFollower): frames are delivered as
 // their rows appear in the frames CSV, with the GNSS position at their time from the samples
-// received so far; the input ends after `idle_timeout_s` without a new frame.
+// received so far; the input ends after `idle_timeout_s` without a new frame. The constructor
+// waits up to `idle_timeout_s` for the manifest (drive.json) to appear.
 class FollowDriveSource : public FrameSource {
  public:
   // `poll_interval_s`: how often the files are checked for new rows.
