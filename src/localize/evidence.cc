@@ -198,8 +198,10 @@ AlongTrackMeasurement MeasureAlongTrack(const std::vector<PairResult>& pairs,
   // leave one used pair out (Efron & Stein) is a floor of the model's. A wrong essential matrix
   // with a confident direction (repeated texture, a camera turned away from the database's view)
   // is consistent with a line through pairs far ahead, whose directions say little; without it
-  // the line lands elsewhere. A fit that needs every pair to exist at all has no jackknife.
+  // the line lands elsewhere. A line that the absence of one pair leaves undefined (no slope
+  // left, or a negative one) is no measurement.
   double jackknife_var = 0.0;
+  bool one_pair_decides = false;
   if (used.size() >= 3) {
     std::vector<double> ls;
     std::vector<Point> rest;
@@ -210,7 +212,7 @@ AlongTrackMeasurement MeasureAlongTrack(const std::vector<PairResult>& pairs,
       double w = 0.0, m = 0.0, x = 0.0;
       if (!FitWeighted(rest, &without, &w, &m, &x)) {
         ls.clear();
-        jackknife_var = std::numeric_limits<double>::infinity();
+        one_pair_decides = true;
         break;
       }
       ls.push_back(without.l);
@@ -239,6 +241,8 @@ AlongTrackMeasurement MeasureAlongTrack(const std::vector<PairResult>& pairs,
     out.failure = "too few consistent pairs";
   } else if (out.lateral_offset_m > options.max_lateral_offset_m) {
     out.failure = "the pairs' directions show no road geometry";
+  } else if (one_pair_decides) {
+    out.failure = "one pair decides the line";
   } else if (!std::isfinite(out.sigma_m)) {
     out.failure = "no uncertainty";
   } else if (contradicted > 0) {

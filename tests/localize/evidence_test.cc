@@ -220,6 +220,19 @@ TEST(Evidence, OnePairDoesNotDecideThePosition) {
   EXPECT_LE(std::abs(m.l_m + 13.8), 3 * m.sigma_m) << "sigma " << m.sigma_m;
 }
 
+// Three pairs whose line only exists with one of them (the other two at the same place): no
+// measurement, whatever the fit's covariance says.
+TEST(Evidence, ALineThatOnePairAloneMakesIsNoMeasurement) {
+  Street street = MakeStreet(1.0, 1.0, 0.0, 2.0, 1.0);  // cameras at 0, 1, 2
+  street.db_s[2] = 1.0;                                 // the third beside the second
+  street.pairs[2].signed_cot = 0.001;
+  const AlongTrackMeasurement m =
+      MeasureAlongTrack(street.pairs, street.db_s, kFocal, EvidenceOptions());
+  EXPECT_EQ(m.num_used, 3);
+  EXPECT_FALSE(m.valid);
+  EXPECT_EQ(m.failure, "one pair decides the line");
+}
+
 // Agreeing pairs keep the fit's sigma: the jackknife adds nothing where no pair stands out.
 TEST(Evidence, AgreeingPairsKeepTheModelSigma) {
   const Street street = MakeStreet(4.3, 1.5);
