@@ -1,0 +1,259 @@
+// What a map can give structure anchoring (`epiloc anchor --vo`, issue 17), measured with exact
+// structure: the 3-D points of a route database triangulated from its survey's true poses
+// (`epiloc build-db` + `epiloc triangulate` on a drive with ground truth) registered to a LiDAR
+// map by the same Sim(3) ICP the anchors use. Prints figures; not a test.
+//
+// Exact structure has no VO error, no scale drift and no seed error, so what is left is the map:
+// (1) the whole drive's points, fitted from the truth by the fine levels alone: the offset between
+//     the map and the survey's ground truth (no anchor measured in the map can be graded nearer
+//     the truth than this);
+// (2) per window of frames about every `--every`-th frame (the anchors' window): the fit from the
+//     truth with the anchors' whole schedule and seed search, and from seeds 1 m off along and
+//     across the road: how far the registration lands from the truth when nothing else is wrong.
+//
+// Usage: epiloc_bench_structure_bound --db route.sqlite --cloud map.ply [--cloud-origin
+// LAT,LON,ALT]
+//        [--half-window 20]
+//        [--every 20] [--range 35] [--min-observations 3] [--grid]
+// (3) with --grid: how many points lie within 0.1 m of the map's surface (the finest level's loss
+//     scale) over a grid of horizontal moves from the truth, for the whole drive and each window:
+//     where the map itself puts the structure, no optimiser involved.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <Eigen/Geometry>
+
+#include "epiloc/anchor/map_sidecar.h"
+#include "epiloc/anchor/structure_registration.h"
+#include "epiloc/cloud/cloud_io.h"
+#include "epiloc/cloud/voxel.h"
+#include "epiloc/core/error.h"
+#include "epiloc/db/database.h"
+#include "epiloc/geo/geodetic.h"
+
+namespace epiloc {
+namespace {
+
+struct Offset {
+  double along = 0, across = 0, up = 0, rotation_deg = 0, scale = 1;
+};
+
+// How far `s` moves the point `at` (metres, split along / across the horizontal `forward` and
+// up) and how much it turns.
+Offset OffsetAt(const Similarity3& s, const Eigen::Vector3d& at, const Eigen::Vector3d& forward) {
+  const Eigen::Vector3d d = s * at - at;
+  const Eigen::Vector3d left = Eigen::Vector3d::UnitZ().cross(forward);
+  return {d.dot(forward), d.dot(left), d.z(), Eigen::AngleAxisd(s.rotation).angle() * 180.0 / M_PI,
+          s.scale};
+}
+
+void Print(const char* label, const StructureRegistration& r, const Offset& o) {
+  std::printf(
+      "  %-22s along %+6.2f across %+6.2f up %+6.2f m, rot %5.2f deg, scale %.3f; "
+      "inliers %.2f, along_sigma %.2f m%s\n",
+      label, o.along, o.across, o.up, o.rotation_deg, o.scale, r.inlier_share, r.along_sigma_m,
+      r.success ? "" : " (failed)");
+}
+
+int Run(int argc, char** argv) {
+  CLI::App app{"Structure anchoring's bound: exact survey structure registered to a LiDAR map"};
+  std::string db_path, cloud_path, cloud_origin;
+  int half_window = 20, every = 20, min_observations = 3;
+  double range_m = 35.0;
+  bool with_grid = false;
+  app.add_option("--db", db_path, "Route database with triangulated points (true poses)")
+      ->required();
+  app.add_option("--cloud", cloud_path, "LiDAR map with its origin sidecar")->required();
+  app.add_option("--cloud-origin", cloud_origin,
+                 "LAT,LON,ALT of the cloud's ENU origin (default: its sidecar's; a synthetic "
+                 "world's: 49,8.4,115)");
+  app.add_option("--half-window", half_window, "Frames either side of a window's centre");
+  app.add_option("--every", every, "Window centres every this many frames");
+  app.add_option("--range", range_m, "Points within this of the centre camera, metres");
+  app.add_option("--min-observations", min_observations,
+                 "Points seen by at least this many frames");
+  app.add_flag("--grid", with_grid,
+               "Also count the points on the map's surfaces over a grid of moves from the truth");
+  CLI11_PARSE(app, argc, argv);
+
+  Database db(db_path, Database::Mode::kReadOnly);
+  const std::optional<Geodetic> db_origin = db.EnuOrigin();
+  if (!db_origin) Throw("{}: no ENU origin", db_path);
+  // The map in the database's ENU frame (origins metres apart: a translation).
+  const std::optional<MapSidecar> sidecar = FindMapSidecar(cloud_path);
+  if (!sidecar && cloud_origin.empty())
+    Throw("{}: no origin sidecar; give --cloud-origin", cloud_path);
+  const Geodetic map_origin =
+      cloud_origin.empty() ? sidecar->enu_origin : ParseGeodetic(cloud_origin, "--cloud-origin");
+  const Eigen::Vector3f map_in_db = EnuFrame(*db_origin).ToEnu(map_origin).cast<float>();
+  PointCloud cloud = VoxelFilter(ReadPointCloud(cloud_path), 0.2);  // as `anchor` does
+  for (Eigen::Vector3f& p : cloud.positions) p += map_in_db;
+  cloud.intensity.clear();
+  cloud.rgb.clear();
+  StructureRegistrationOptions options;
+  StructureMap map(cloud, options);
+
+  // Frames and the points each sees.
+  const std::vector<DbFrame> frames = db.ReadFrames();
+  std::map<int64_t, Eigen::Vector3d> points;
+  std::map<int64_t, int> observations;
+  std::vector<std::vector<int64_t>> seen(frames.size());
+  for (size_t i = 0; i < frames.size(); ++i) {
+    for (const DbFramePoint& p : db.ReadFramePoints(frames[i].image_id)) {
+      points[p.point_id] = p.position_in_enu;
+      ++observations[p.point_id];
+      seen[i].push_back(p.point_id);
+    }
+  }
+  std::printf(
+      "%s: %zu frames, %zu points; map %zu points (0.2 m voxels), %+.3f %+.3f %+.3f m "
+      "from the database's origin\n",
+      db_path.c_str(), frames.size(), points.size(), map.size(), map_in_db.x(), map_in_db.y(),
+      map_in_db.z());
+
+  // (1) The whole drive: fine levels from the truth, the anchor's schedule and its parts.
+  StructureRegistrationOptions fine = options;
+  fine.max_distances_m = {0.6, 0.4, 0.25};
+  fine.search_step_m = 0;
+  std::vector<Eigen::Vector3d> all;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& [id, x] : points) {
+    if (observations[id] < min_observations) continue;
+    all.push_back(x);
+    centroid += x;
+  }
+  centroid /= std::max<size_t>(all.size(), 1);
+  const auto whole = [&](const char* label, const Eigen::Vector3d& seed_move,
+                         const StructureRegistrationOptions& o) {
+    Similarity3 seed;
+    seed.translation = seed_move;
+    const StructureRegistration r = RegisterStructure(all, map, seed, Eigen::Vector3d::UnitY(), o);
+    const Eigen::Vector3d d = r.map_from_world * centroid - centroid;
+    std::printf(
+        "whole drive (%zu points), %s: the structure moves east %+.3f north %+.3f up "
+        "%+.3f m (horizontal %.3f), turns %.3f deg, scale %.4f; inliers %.2f\n",
+        all.size(), label, d.x(), d.y(), d.z(), d.head<2>().norm(),
+        Eigen::AngleAxisd(r.map_from_world.rotation).angle() * 180.0 / M_PI, r.map_from_world.scale,
+        r.inlier_share);
+  };
+  whole("fine levels from the truth", Eigen::Vector3d::Zero(), fine);
+  whole("anchor's schedule from the truth", Eigen::Vector3d::Zero(), options);
+  {
+    StructureRegistrationOptions o = options;
+    o.search_step_m = 0;
+    whole("anchor's levels, no search, from the truth", Eigen::Vector3d::Zero(), o);
+    o = fine;
+    o.search_step_m = options.search_step_m;
+    whole("search + fine levels, from the truth", Eigen::Vector3d::Zero(), o);
+  }
+  whole("anchor's schedule from 3 m east", Eigen::Vector3d(3, 0, 0), options);
+  whole("anchor's schedule from 3 m north", Eigen::Vector3d(0, 3, 0), options);
+
+  // The count of points on the map's surfaces over a grid of horizontal moves from the truth.
+  const auto grid = [&](const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& fwd,
+                        double tol) {
+    const Eigen::Vector3d lft = Eigen::Vector3d::UnitZ().cross(fwd);
+    std::printf(
+        "  points within %.2f m of the map's surface, moved along (rows) and across "
+        "(columns, left positive):\n",
+        tol);
+    int best = -1;
+    double ba = 0, bc = 0;
+    for (double a = -2.0; a <= 2.01; a += 0.25) {
+      std::printf("  %+5.2f:", a);
+      for (double c = -1.0; c <= 1.01; c += 0.25) {
+        int count = 0;
+        for (const Eigen::Vector3d& p : pts) {
+          const Eigen::Vector3d x = p + a * fwd + c * lft;
+          const int n = map.Nearest(x, 0.5);
+          if (n < 0) continue;
+          const double d =
+              (map.Projector(n).cast<double>() * (x - map.Point(n).cast<double>())).norm();
+          count += d < tol;
+        }
+        std::printf(" %6d", count);
+        if (count > best) {
+          best = count;
+          ba = a;
+          bc = c;
+        }
+      }
+      std::printf("\n");
+    }
+    std::printf("  best at along %+.2f across %+.2f: %d\n", ba, bc, best);
+  };
+  if (with_grid) {
+    std::printf("whole drive, moves east (rows) and north (columns):\n");
+    grid(all, Eigen::Vector3d::UnitX(), 0.1);
+  }
+
+  // (2) Windows.
+  std::vector<double> from_truth, from_off;
+  for (size_t c = 0; c < frames.size(); c += every) {
+    const Eigen::Vector3d centre = frames[c].center_in_enu;
+    const double heading = frames[c].heading_deg * M_PI / 180.0;
+    const Eigen::Vector3d forward(std::sin(heading), std::cos(heading), 0.0);
+    const Eigen::Vector3d left = Eigen::Vector3d::UnitZ().cross(forward);
+    std::vector<int64_t> ids;
+    for (size_t i = c >= static_cast<size_t>(half_window) ? c - half_window : 0;
+         i < std::min(frames.size(), c + half_window + 1); ++i) {
+      ids.insert(ids.end(), seen[i].begin(), seen[i].end());
+    }
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    std::vector<Eigen::Vector3d> window;
+    for (int64_t id : ids) {
+      const Eigen::Vector3d& x = points[id];
+      if (observations[id] >= min_observations && (x - centre).norm() <= range_m) {
+        window.push_back(x);
+      }
+    }
+    std::printf("frame %lld (%zu points):\n", static_cast<long long>(frames[c].frame),
+                window.size());
+    if (with_grid) grid(window, forward, 0.1);
+    const auto run = [&](const char* label, const Eigen::Vector3d& seed_move,
+                         const StructureRegistrationOptions& o, std::vector<double>* errors) {
+      Similarity3 seed;
+      seed.translation = seed_move;
+      const StructureRegistration r = RegisterStructure(window, map, seed, forward, o);
+      const Offset off = OffsetAt(r.map_from_world, centre, forward);
+      Print(label, r, off);
+      if (errors) errors->push_back(std::hypot(off.along, off.across));
+    };
+    run("fine, from the truth", Eigen::Vector3d::Zero(), fine, nullptr);
+    run("fine, 0.5 m ahead", 0.5 * forward, fine, nullptr);
+    run("fine, 1 m ahead", forward, fine, nullptr);
+    run("fine, 1 m right", -left, fine, nullptr);
+    run("anchor's, from truth", Eigen::Vector3d::Zero(), options, &from_truth);
+    run("anchor's, 1 m ahead", forward, options, &from_off);
+    run("anchor's, 1 m behind", -forward, options, &from_off);
+    run("anchor's, 1 m left", left, options, &from_off);
+    run("anchor's, 1 m right", -left, options, &from_off);
+  }
+  const auto summary = [](const char* label, std::vector<double> v) {
+    if (v.empty()) return;
+    std::sort(v.begin(), v.end());
+    std::printf("%s: horizontal median %.2f m, max %.2f m (%zu fits)\n", label, v[v.size() / 2],
+                v.back(), v.size());
+  };
+  summary("windows, anchor's schedule from the truth", from_truth);
+  summary("windows, anchor's schedule from 1 m off", from_off);
+  return 0;
+}
+
+}  // namespace
+}  // namespace epiloc
+
+int main(int argc, char** argv) {
+  try {
+    return epiloc::Run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "epiloc_bench_structure_bound: error: %s\n", e.what());
+    return 1;
+  }
+}
