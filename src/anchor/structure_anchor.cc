@@ -47,20 +47,6 @@ std::vector<SegmentRange> ReadSegmentComments(const std::string& path) {
   return segments;
 }
 
-// The VO pose of each drive frame (index into vo.poses, or -1) by time (within 1 ms).
-std::vector<int> PoseOfFrame(const Drive& drive, const VoStructure& vo) {
-  std::vector<int> pose_of(drive.frames.size(), -1);
-  size_t j = 0;
-  for (size_t i = 0; i < drive.frames.size(); ++i) {
-    const double t = drive.frames[i].timestamp_s;
-    while (j < vo.poses.size() && vo.poses[j].timestamp_s < t - 1e-3) ++j;
-    if (j < vo.poses.size() && std::abs(vo.poses[j].timestamp_s - t) <= 1e-3) {
-      pose_of[i] = static_cast<int>(j);
-    }
-  }
-  return pose_of;
-}
-
 struct Fit {
   StructureRegistration registration;
   bool valid = false;
@@ -78,6 +64,8 @@ void StructureAnchorOptions::Check() const {
   prior.Check();
   registration.Check();
   EPILOC_CHECK(std::isfinite(window_m) && window_m > 0, "structure anchor: window_m must be > 0");
+  EPILOC_CHECK(std::isfinite(consensus_radius_m) && consensus_radius_m >= 0,
+               "structure anchor: consensus_radius_m must be >= 0");
   EPILOC_CHECK(min_observations >= 2, "structure anchor: min_observations must be >= 2");
   EPILOC_CHECK(max_point_range_m > 0, "structure anchor: max_point_range_m must be > 0");
   EPILOC_CHECK(max_points >= registration.min_points,
@@ -148,7 +136,8 @@ AnchorResult AnchorOne(const Drive& drive,
                        const VoStructure& vo,
                        const std::function<PointCloud(const Eigen::Vector3d&, double)>& load,
                        const EnuFrame& map_frame,
-                       const StructureAnchorOptions& options) {
+                       const StructureAnchorOptions& options,
+                       const Similarity3* given = nullptr) {
   const auto start = std::chrono::steady_clock::now();
   const FrameRecord& record = drive.frames[index];
   AnchorResult result;
@@ -333,6 +322,15 @@ AnchorResult AnchorOne(const Drive& drive,
   bool have = false;
   std::vector<Eigen::Vector2d> offsets = {Eigen::Vector2d::Zero()};
   offsets.insert(offsets.end(), options.seed_offsets_m.begin(), options.seed_offsets_m.end());
+  if (given) {
+    // A neighbour's similarity (the consensus pass): the fine levels from it, no search.
+    StructureRegistrationOptions fine = options.registration;
+    fine.search_step_m = 0.0;
+    fine.max_distances_m = options.refine_distances_m;
+    best = RegisterStructure(points, structure_map, *given, along, fine);
+    have = true;
+    offsets.clear();
+  }
   for (const Eigen::Vector2d& o : offsets) {
     Similarity3 start_sim = seed;
     start_sim.translation += o.x() * along + o.y() * right;
@@ -431,7 +429,108 @@ AnchorResult AnchorOne(const Drive& drive,
   return finish(result);
 }
 
+// The similarity VO world -> map an anchored frame's pose implies.
+Similarity3 ImpliedSimilarity(const AnchorResult& a, const Rigid3d& world_from_cam) {
+  Similarity3 s;
+  s.scale = a.scale_m_per_unit;
+  s.rotation = (a.map_from_cam.rotation * world_from_cam.rotation.conjugate()).normalized();
+  s.translation = a.map_from_cam.translation - s.scale * (s.rotation * world_from_cam.translation);
+  return s;
+}
+
+// The consensus pass (StructureAnchorOptions::consensus_radius_m): each posed anchor's camera is
+// placed by the similarities of the posed anchors around it (same segment, within half the window
+// along the road); where most of them agree (within the radius of their median, at least three)
+// and the anchor's own fit does not, it is registered again from the agreeing similarity nearest
+// the median, with the fine levels only.
+void ApplyConsensus(const Drive& drive,
+                    const std::vector<size_t>& indices,
+                    const std::vector<int>& pose_of,
+                    const VoStructure& vo,
+                    const std::function<PointCloud(const Eigen::Vector3d&, double)>& load,
+                    const EnuFrame& map_frame,
+                    const StructureAnchorOptions& options,
+                    AnchorDriveResult* out) {
+  struct Posed {
+    size_t k;  // index into out->frames
+    int pose;
+    int segment;
+    Similarity3 sim;
+  };
+  std::vector<Posed> posed;
+  for (size_t k = 0; k < out->frames.size(); ++k) {
+    const AnchorResult& a = out->frames[k];
+    const int pose = pose_of[indices[k]];
+    if (!a.has_pose || pose < 0) continue;
+    const Rigid3d& world_from_cam = vo.poses[static_cast<size_t>(pose)].world_from_cam;
+    posed.push_back({k, pose, vo.SegmentOf(a.frame), ImpliedSimilarity(a, world_from_cam)});
+  }
+  const double radius = options.consensus_radius_m;
+  std::vector<std::pair<size_t, Similarity3>> redo;
+  for (const Posed& i : posed) {
+    const Eigen::Vector3d c = vo.poses[static_cast<size_t>(i.pose)].world_from_cam.translation;
+    const Eigen::Vector3d own = out->frames[i.k].map_from_cam.translation;
+    std::vector<std::pair<Eigen::Vector2d, const Posed*>> predictions;
+    for (const Posed& j : posed) {
+      if (j.segment != i.segment) continue;
+      if ((out->frames[j.k].map_from_cam.translation - own).head<2>().norm() >
+          0.5 * options.window_m) {
+        continue;
+      }
+      predictions.push_back({(j.sim * c).head<2>(), &j});
+    }
+    if (predictions.size() < 3) continue;
+    std::vector<double> xs, ys;
+    for (const auto& p : predictions) {
+      xs.push_back(p.first.x());
+      ys.push_back(p.first.y());
+    }
+    std::nth_element(xs.begin(), xs.begin() + xs.size() / 2, xs.end());
+    std::nth_element(ys.begin(), ys.begin() + ys.size() / 2, ys.end());
+    const Eigen::Vector2d median(xs[xs.size() / 2], ys[ys.size() / 2]);
+    int agreeing = 0;
+    const Posed* nearest = nullptr;
+    double nearest_m = INFINITY;
+    for (const auto& [p, j] : predictions) {
+      const double d = (p - median).norm();
+      if (d > radius) continue;
+      ++agreeing;
+      if (d < nearest_m) {
+        nearest_m = d;
+        nearest = j;
+      }
+    }
+    if (agreeing < 3 || 2 * agreeing <= static_cast<int>(predictions.size())) continue;
+    if ((own.head<2>() - median).norm() <= radius || nearest == nullptr || nearest == &i) continue;
+    redo.push_back({i.k, nearest->sim});
+  }
+  ParallelFor(static_cast<int64_t>(redo.size()), options.num_threads, [&](int64_t r) {
+    const auto& [k, sim] = redo[static_cast<size_t>(r)];
+    AnchorResult again = AnchorOne(drive, indices[k], pose_of, vo, load, map_frame, options, &sim);
+    if (!again.has_pose) return;
+    again.seconds += out->frames[k].seconds;
+    const std::string note = "re-registered from the consensus of its neighbours";
+    again.message = again.message.empty() ? note : again.message + "; " + note;
+    out->frames[k] = again;
+  });
+  spdlog::debug("structure anchors: {} of {} posed re-registered from their neighbours' consensus",
+                redo.size(), posed.size());
+}
+
 }  // namespace
+
+std::vector<int> VoPoseOfFrame(const Drive& drive, const VoStructure& vo) {
+  std::vector<int> pose_of(drive.frames.size(), -1);
+  size_t j = 0;
+  for (size_t i = 0; i < drive.frames.size(); ++i) {
+    const double t = drive.frames[i].timestamp_s;
+    while (j < vo.poses.size() && vo.poses[j].timestamp_s < t - 1e-3) ++j;
+    if (j < vo.poses.size() && std::abs(vo.poses[j].timestamp_s - t) <= 1e-3) {
+      pose_of[i] = static_cast<int>(j);
+    }
+  }
+  return pose_of;
+}
 
 AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
                                          const VoStructure& vo,
@@ -445,7 +544,7 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
     Throw("{}: the drive has no GNSS positions to anchor from", inputs.drive_dir);
   }
   const std::vector<size_t> indices = anchor_internal::SelectFrames(inputs, drive);
-  const std::vector<int> pose_of = PoseOfFrame(drive, vo);
+  const std::vector<int> pose_of = VoPoseOfFrame(drive, vo);
   if (std::none_of(pose_of.begin(), pose_of.end(), [](int k) { return k >= 0; })) {
     Throw("{}: no VO pose falls on a frame time of drive {} (another drive?)", inputs.vo_path,
           inputs.drive_dir);
@@ -520,6 +619,9 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
     ++done;
     if (progress) progress(done, static_cast<int64_t>(indices.size()));
   });
+  if (options.consensus_radius_m > 0.0) {
+    ApplyConsensus(drive, indices, pose_of, timed, load, map_frame, options, &out);
+  }
   for (const AnchorResult& r : out.frames) out.num_ok += r.status == AnchorStatus::kOk ? 1 : 0;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;

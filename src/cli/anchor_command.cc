@@ -10,6 +10,7 @@
 #include "epiloc/anchor/anchor.h"
 #include "epiloc/anchor/map_sidecar.h"
 #include "epiloc/anchor/structure_anchor.h"
+#include "epiloc/anchor/structure_sift.h"
 #include "epiloc/cli/commands.h"
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
@@ -141,7 +142,7 @@ int RunAnchor(int argc, char** argv) {
   AnchorInputs inputs;
   AnchorOptions options;
   std::string frames_text, out_path, origin_text, db_path, matcher = "akaze", shading = "auto";
-  std::string method = "auto", vo_points_path;
+  std::string method = "auto", vo_points_path, structure_source = "vo";
   StructureAnchorOptions structure;
   app.add_option("--cloud", inputs.cloud_path, "Map: point-cloud file or tile directory")
       ->required();
@@ -220,6 +221,10 @@ int RunAnchor(int argc, char** argv) {
                  "structure: the drive's VO trajectory (epiloc vo TUM; its points file beside it)");
   app.add_option("--vo-points", vo_points_path,
                  "structure: the VO points CSV (default: beside --vo, .points.csv)");
+  app.add_option("--structure", structure_source,
+                 "structure: the points registered to the map: sift (the drive's SIFT "
+                 "features triangulated along the VO poses) or vo (the VO's own KLT points)")
+      ->capture_default_str();
   app.add_option("--window", structure.window_m,
                  "structure: road length of the keyframe window, metres")
       ->capture_default_str();
@@ -246,6 +251,9 @@ int RunAnchor(int argc, char** argv) {
     method = !inputs.photos_dir.empty() ? "photos"
              : !inputs.vo_path.empty()  ? "structure"
                                         : "render";
+  }
+  if (structure_source != "sift" && structure_source != "vo") {
+    Throw("--structure: unknown structure '{}' (sift, vo)", structure_source);
   }
   if (method != "structure" && method != "render" && method != "photos") {
     Throw("--method: unknown anchoring method '{}' (auto, structure, render, photos)", method);
@@ -287,7 +295,19 @@ int RunAnchor(int argc, char** argv) {
     structure.heading_error_deg = options.heading_error_deg;
     structure.seed = options.seed;
     structure.num_threads = options.num_threads;
-    const VoStructure vo = VoStructure::Read(inputs.vo_path, vo_points_path);
+    VoStructure vo = VoStructure::Read(inputs.vo_path, vo_points_path);
+    if (structure_source == "sift") {
+      BuildDbOptions build;
+      build.num_threads = options.num_threads;
+      SiftStructureSummary sift;
+      Progress triangulation("structure", 0);
+      vo = TriangulateAlongVo(inputs.drive_dir, vo, build, &sift, triangulation.Callback());
+      triangulation.Finish();
+      spdlog::info(
+          "structure: {} SIFT points (mean track {:.1f} frames) triangulated along the VO poses "
+          "of {} frames in {} segment(s), {:.1f} s",
+          sift.points, sift.mean_track_length, sift.frames, sift.segments, sift.seconds);
+    }
     result = AnchorDriveByStructure(inputs, vo, structure, progress.Callback());
   } else {
     if (method == "render") inputs.photos_dir.clear();

@@ -62,6 +62,13 @@ struct StructureAnchorOptions {
   double refine_window_m = 0.0;  // then refined over this road length about f (0: not;
                                  // KITTI: no gain at 10-20 m)
   std::vector<double> refine_distances_m = {0.6, 0.4, 0.25};  // with these distances, no search
+  // Consensus: the VO is consistent within a window (synthetic street: 0.008 m), so neighbouring
+  // anchors' similarities place a frame's camera alike; a street of repeated facades gives each
+  // window's registration peaks a facade period apart, and the anchors that land on another peak
+  // than most of their neighbours are registered again from the majority's (see
+  // ApplyConsensus in the source). This is the radius of agreement, metres (0: off): twice the
+  // finest correspondence distance, the fine levels' reach.
+  double consensus_radius_m = 0.6;
   double min_inlier_share = 0.3;        // reliability: share of points within the finest distance
   double max_rms_m = 0.15;              // reliability: RMS residual of the inliers, metres
   double max_scale_change = 0.2;        // reliability: |scale / seed scale - 1|
@@ -99,6 +106,10 @@ struct VoStructure {
   // The same from an odometry run in memory (VoOptions::keep_points).
   static VoStructure FromResult(const VoResult& result);
 };
+
+// The VO pose of each frame of `drive` (index into vo.poses, or -1): the pose at the frame's time
+// (within 1 ms).
+std::vector<int> VoPoseOfFrame(const Drive& drive, const VoStructure& vo);
 
 // Anchors the selected frames of a drive (inputs.frames / inputs.every; photos_dir unused) by
 // registering `vo`'s structure to the map. Frames without a VO pose are `lost`. Throws Error as

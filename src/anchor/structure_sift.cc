@@ -1,0 +1,200 @@
+#include "epiloc/anchor/structure_sift.h"
+
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <map>
+
+#include <spdlog/spdlog.h>
+
+#include "epiloc/core/error.h"
+#include "epiloc/db/database.h"
+#include "epiloc/geo/geodetic.h"
+#include "epiloc/io/drive.h"
+#include "epiloc/io/position_readers.h"
+
+namespace epiloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A scratch folder removed when it goes out of scope (also during an exception).
+class ScratchDir {
+ public:
+  ScratchDir() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            fmt::format("epiloc-structure-{}-{}", static_cast<long>(getpid()), counter++);
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~ScratchDir() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+// Camera axes (x right, y down, z forward) in a level ENU frame looking north.
+Eigen::Matrix3d LevelNorthFromCam() {
+  Eigen::Matrix3d m;
+  m << 1, 0, 0,  //
+      0, 0, 1,   //
+      0, -1, 0;
+  return m;
+}
+
+// A point's first and last observing frame, their count and the rays' widest angle (first to last).
+struct Seen {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  frame_t first = kInvalidFrame, last = kInvalidFrame;
+  Eigen::Vector3d first_centre = Eigen::Vector3d::Zero(), last_centre = Eigen::Vector3d::Zero();
+  int observations = 0;
+};
+
+}  // namespace
+
+VoStructure TriangulateAlongVo(const std::string& drive_dir,
+                               const VoStructure& vo,
+                               const BuildDbOptions& build,
+                               SiftStructureSummary* summary,
+                               const ProgressCallback& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  const Drive drive = LoadDrive(drive_dir);
+  if (drive.gnss.samples.empty()) Throw("{}: the drive has no GNSS positions", drive.dir);
+  const EnuFrame local(drive.gnss.samples.front().position);
+  SiftStructureSummary sums;
+
+  // Poses on the drive's frames, by segment.
+  VoStructure timed = vo;
+  const std::vector<int> pose_of = VoPoseOfFrame(drive, vo);
+  for (size_t i = 0; i < pose_of.size(); ++i) {
+    if (pose_of[i] >= 0) timed.poses[static_cast<size_t>(pose_of[i])].frame = drive.frames[i].frame;
+  }
+  std::map<int, std::vector<const StampedPose*>> by_segment;
+  for (const StampedPose& pose : timed.poses) {
+    if (pose.frame == kInvalidFrame) continue;
+    const int segment = vo.SegmentOf(pose.frame);
+    if (segment >= 0) by_segment[segment].push_back(&pose);
+  }
+
+  VoStructure out = vo;
+  out.points.clear();
+  std::map<int, bool> replaced;
+  double track_length_sum = 0.0;
+  for (const auto& [segment, poses] : by_segment) {
+    if (poses.size() < 2) continue;
+    // Scale: the spread of the GNSS fixes over that of the VO centres (noise raises it by
+    // sigma^2 / spread^2: 2 % for 3 m over a 20 m spread; the triangulation's metric gates need
+    // no better).
+    std::vector<Eigen::Vector3d> gnss, centres;
+    for (const StampedPose* pose : poses) {
+      const auto fix = drive.gnss.Interpolate(pose->timestamp_s, drive.max_gap_s);
+      if (!fix) continue;
+      gnss.push_back(local.ToEnu(fix->position));
+      centres.push_back(pose->world_from_cam.translation);
+    }
+    if (gnss.size() < 2) continue;
+    Eigen::Vector3d gm = Eigen::Vector3d::Zero(), vm = Eigen::Vector3d::Zero();
+    for (size_t i = 0; i < gnss.size(); ++i) {
+      gm += gnss[i];
+      vm += centres[i];
+    }
+    gm /= gnss.size();
+    vm /= centres.size();
+    double g2 = 0.0, v2 = 0.0;
+    for (size_t i = 0; i < gnss.size(); ++i) {
+      g2 += (gnss[i] - gm).head<2>().squaredNorm();
+      v2 += (centres[i] - vm).squaredNorm();
+    }
+    constexpr double kMinSpreadM = 5.0;  // shorter: the GNSS noise is the scale
+    if (g2 / gnss.size() < kMinSpreadM * kMinSpreadM || v2 <= 0.0) {
+      spdlog::info("VO segment {}: GNSS spread below {} m, its VO points kept", segment,
+                   kMinSpreadM);
+      continue;
+    }
+    const double scale = std::sqrt(g2 / v2);
+    const Eigen::Matrix3d level =
+        LevelNorthFromCam() * poses.front()->world_from_cam.rotation.conjugate().toRotationMatrix();
+    const Eigen::Vector3d first = poses.front()->world_from_cam.translation;
+
+    PositionTrack track;
+    track.source = fmt::format("VO segment {}", segment);
+    for (const StampedPose* pose : poses) {
+      PositionSample sample;
+      sample.timestamp_s = pose->timestamp_s;
+      sample.position =
+          local.ToGeodetic(scale * (level * (pose->world_from_cam.translation - first)));
+      sample.enu_from_cam =
+          Eigen::Quaterniond(level * pose->world_from_cam.rotation.toRotationMatrix()).normalized();
+      sample.frame = pose->frame;
+      track.samples.push_back(sample);
+    }
+    const ScratchDir scratch;
+    const std::string positions = (scratch.path() / "positions.csv").string();
+    const std::string db_path = (scratch.path() / "structure.sqlite").string();
+    WritePositionCsv(track, positions);
+    BuildDbOptions options = build;
+    options.positions = positions;
+    options.retrieval_index = false;
+    options.triangulate = true;
+    const BuildDbSummary built = BuildDatabase(drive_dir, db_path, options, progress);
+    track_length_sum += built.triangulation.mean_track_length * built.triangulation.num_points;
+
+    // The points, back in the VO world: x_vo = level^T x / scale + first.
+    Database db(db_path, Database::Mode::kReadOnly);
+    const EnuFrame db_enu(*db.EnuOrigin());
+    const auto to_vo = [&](const Eigen::Vector3d& in_db) {
+      const Eigen::Vector3d x = local.ToEnu(db_enu.ToGeodetic(in_db));
+      return Eigen::Vector3d(level.transpose() * x / scale + first);
+    };
+    std::map<int64_t, Seen> seen;
+    for (const DbFrame& frame : db.ReadFrames()) {
+      ++sums.frames;
+      const Eigen::Vector3d centre = to_vo(frame.center_in_enu);
+      for (const DbFramePoint& p : db.ReadFramePoints(frame.image_id)) {
+        Seen& s = seen[p.point_id];
+        if (s.observations == 0) {
+          s.position = to_vo(p.position_in_enu);
+          s.first = frame.frame;
+          s.first_centre = centre;
+        }
+        s.last = frame.frame;
+        s.last_centre = centre;
+        ++s.observations;
+      }
+    }
+    for (const auto& [id, s] : seen) {
+      VoPoint point;
+      point.point_in_world = s.position;
+      point.segment = segment;
+      point.first_frame = s.first;
+      point.last_frame = s.last;
+      point.observations = s.observations;
+      const Eigen::Vector3d a = s.position - s.first_centre, b = s.position - s.last_centre;
+      point.parallax_deg = std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
+      out.points.push_back(point);
+    }
+    sums.points += static_cast<int64_t>(seen.size());
+    ++sums.segments;
+    replaced[segment] = true;
+  }
+  // Segments not triangulated keep the VO's own points.
+  for (const VoPoint& p : vo.points) {
+    if (!replaced.count(p.segment)) out.points.push_back(p);
+  }
+  sums.mean_track_length = sums.points > 0 ? track_length_sum / sums.points : 0.0;
+  sums.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (summary) *summary = sums;
+  return out;
+}
+
+}  // namespace epiloc
