@@ -26,9 +26,11 @@
 // Frames: map = the cloud's local ENU (metres); VO world = the trajectory's frame (its units).
 // Accuracy (README): on the shared KITTI drive about 0.9 m and 1.4 degrees (median), metres better
 // than a consumer GNSS but far from the photographs' centimetres: the ICP's cost on a sparse map
-// and a monocular structure has minima about a metre apart. On the synthetic street nothing
-// fixes the structure along the road (its cost is flat there within counting noise, even
-// against the exact surfaces): along_sigma_m says so and the anchors are rejected.
+// and a monocular structure has minima about a metre apart (even exact structure is not placed
+// better there: tools/bench_structure_bound.cc). On the synthetic street the VO's KLT points are
+// too noisy to be fixed along the road (their count on the map's surfaces is flat within
+// counting noise): along_sigma_m says so and the anchors are rejected; the drive's SIFT features
+// triangulated along the VO poses (structure_sift.h) are placed to 0.05 m (median) there.
 #pragma once
 
 #include <string>
