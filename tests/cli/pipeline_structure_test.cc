@@ -88,15 +88,20 @@ void AnchorGeorefLocalize(const TempDir& dir,
   out->online = *online;
 }
 
+// The synthetic street's map (from the survey's LiDAR) and the query's VO in `dir`.
+void SyntheticMapAndVo(const TempDir& dir, const std::string& query, const std::string& survey) {
+  RunEpiloc(fmt::format("build-map --drive {} --out {} --origin {:.9f},{:.9f},{:.3f}", survey,
+                        dir / "map.ply", SynthOrigin().lat_deg, SynthOrigin().lon_deg,
+                        SynthOrigin().alt_m));
+  RunEpiloc(fmt::format("vo --drive {} --out {}", query, dir / "vo.tum"));
+}
+
 TEST(PipelineStructure, MapVoAnchorGeorefDatabaseLocalize) {
   const std::string world = SharedSyntheticWorld();
   TempDir dir;
   const std::string query = world + "/query", survey = world + "/survey";
   const Drive survey_drive = LoadDrive(survey);
-  RunEpiloc(fmt::format("build-map --drive {} --out {} --origin {:.9f},{:.9f},{:.3f}", survey,
-                        dir / "map.ply", SynthOrigin().lat_deg, SynthOrigin().lon_deg,
-                        SynthOrigin().alt_m));
-  RunEpiloc(fmt::format("vo --drive {} --out {}", query, dir / "vo.tum"));
+  SyntheticMapAndVo(dir, query, survey);
   // Without --map-photos and with --vo, anchor registers the VO structure (method structure).
   // This street does not fix the structure along the road: by default every anchor is rejected
   // as weak along it (along_sigma_m of metres, README); --max-along-sigma accepts them here so
@@ -121,6 +126,34 @@ TEST(PipelineStructure, MapVoAnchorGeorefDatabaseLocalize) {
   // these anchors, 17 of 26 frames were (the first waits for a second measurement).
   EXPECT_GE(chain.online.evaluated() * 2, static_cast<int64_t>(survey_drive.frames.size()));
   EXPECT_LE(chain.online.along_track.mean_abs, 6.0);
+}
+
+// The same chain with the query's SIFT features triangulated along its VO poses as the structure
+// (`anchor --structure sift`).
+TEST(PipelineStructure, SiftStructureChainOnTheSyntheticStreet) {
+  const std::string world = SharedSyntheticWorld();
+  TempDir dir;
+  const std::string query = world + "/query", survey = world + "/survey";
+  const Drive survey_drive = LoadDrive(survey);
+  SyntheticMapAndVo(dir, query, survey);
+  ChainFigures chain;
+  AnchorGeorefLocalize(dir, query, survey,
+                       "--every 4 --heading-error-deg 5 --camera-height 1.5 --structure sift "
+                       "--max-along-sigma 5",
+                       &chain);
+  std::printf(
+      "SIFT structure anchors %d of %zu ok, horizontal max %.3f m; piecewise georef max %.3f m; "
+      "survey drive localized on the VO route: online along-track mean %.3f m over %lld frames\n",
+      chain.ok, chain.anchors, chain.anchors_max, chain.piecewise_max,
+      chain.online.along_track.mean_abs, static_cast<long long>(chain.online.evaluated()));
+  // Measured: anchors max 0.66 m (KLT points: 2.26 m), piecewise georef max 0.66 m (2.26), the
+  // survey drive on that route online along-track mean 0.15 m over 17 frames (0.99 m). Still
+  // short of the 0.05 m target; asserted with a margin.
+  EXPECT_GE(chain.ok * 10, static_cast<int>(chain.anchors) * 9);
+  EXPECT_LE(chain.anchors_max, 1.0);
+  EXPECT_LE(chain.piecewise_max, 1.0);
+  EXPECT_GE(chain.online.evaluated() * 2, static_cast<int64_t>(survey_drive.frames.size()));
+  EXPECT_LE(chain.online.along_track.mean_abs, 0.3);
 }
 
 // The same chain on the shared KITTI drive, issue 17's development scenario: the map from camera
