@@ -418,44 +418,29 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
   result.along_sigma_m = std::sqrt(std::max(0.0, u.dot(covariance.block<3, 3>(3, 3) * u)));
   // The Hessian sees only the final pairs: moved along the road, a structure of facades finds
   // other pairs as good (the cost is flat there, or has minima a window apart). So the points on
-  // the map's surface (within the finest level's loss scale) are found over moves along u,
-  // re-paired at each. The counts at two moves are of the same points: what differs is the points
-  // that come onto the surface (gained) and leave it (lost), so a move is not told apart from
-  // the fit when gained - lost is within twice the deviation of that difference under no change,
-  // sqrt(gained + lost) (a paired, McNemar-like test; the whole count's Poisson deviation, used
-  // before, hid sharp fits of good structure: synthetic SIFT structure, 0 of 42 ok at 0.02-0.09 m).
-  // The largest such move is taken as 2 sigma. A move by the finest distance takes a point off
-  // its pair's inlier band: finer steps add nothing.
+  // the map's surface (within the finest level's loss scale) are counted over moves along u,
+  // re-paired at each: a count within twice its Poisson deviation of the fit's is not told apart
+  // from it, and the largest such move is taken as 2 sigma. A move by the finest distance takes
+  // a point off its pair's inlier band: finer steps add nothing.
   const double surface_m = options.loss_scale_ratio * finest;
   const auto on_surface = [&](double move_m) {
     Similarity3 moved = sim;
     moved.translation += move_m * u;
-    std::vector<Eigen::Vector3d> x(points.size());
-    for (size_t i = 0; i < points.size(); ++i) x[i] = moved * points[i];
-    const std::vector<int> nearest = map.Nearest(x, finest);
-    std::vector<char> on(points.size(), 0);
-    for (size_t i = 0; i < points.size(); ++i) {
-      if (nearest[i] < 0) continue;
-      const Eigen::Vector3d d = x[i] - map.Point(nearest[i]).cast<double>();
-      on[i] = (map.Projector(nearest[i]).cast<double>() * d).norm() <= surface_m ? 1 : 0;
+    int count = 0;
+    for (const Pair& p : FindPairs(points, moved, map, finest)) {
+      count += PairResidual(p) <= surface_m ? 1 : 0;
     }
-    return on;
+    return count;
   };
   const double reach_m = options.search_step_m > 0.0 && options.search_along_m > 0.0
                              ? options.search_along_m
                              : options.max_distances_m.front();
-  const std::vector<char> at_fit = on_surface(0.0);
-  result.along_points_on_surface =
-      static_cast<int>(std::count(at_fit.begin(), at_fit.end(), char{1}));
+  result.along_points_on_surface = on_surface(0.0);
+  const double tie =
+      2.0 * std::sqrt(static_cast<double>(std::max(result.along_points_on_surface, 1)));
   for (int k = 1; k * finest <= reach_m + 1e-9; ++k) {
     for (const int sign : {-1, 1}) {
-      const std::vector<char> moved = on_surface(sign * k * finest);
-      int gained = 0, lost = 0;
-      for (size_t i = 0; i < at_fit.size(); ++i) {
-        gained += moved[i] && !at_fit[i] ? 1 : 0;
-        lost += at_fit[i] && !moved[i] ? 1 : 0;
-      }
-      if (gained - lost + 2.0 * std::sqrt(static_cast<double>(std::max(gained + lost, 1))) >= 0.0) {
+      if (on_surface(sign * k * finest) + tie >= result.along_points_on_surface) {
         result.along_ambiguity_m = k * finest;
       }
     }

@@ -196,39 +196,10 @@ TEST(StructureRegistration, ReportsDegenerateAlongTheRoad) {
   ASSERT_TRUE(r.success) << r.message;
   EXPECT_LT(r.along_information, 1e-3);
   // Moved anywhere along it within the search's reach, as many points lie on the map (the
-  // profile steps by the finest distance), until the structure (|x| < 15 m) runs off the map's
-  // ends (|x| < 20 m) by the last steps: there the paired count sees the points it loses.
+  // profile steps by the finest distance).
   const double finest = options.max_distances_m.back();
-  EXPECT_GT(r.along_ambiguity_m, options.search_along_m - 3 * finest);
-  EXPECT_GT(r.along_sigma_m, 0.5 * (options.search_along_m - 3 * finest));
-}
-
-// One small wall across the same plain street fixes the structure along it: moved by the finest
-// distance, its few points leave the map's surface and none come on. The change of the count is
-// judged against the points that change (paired), not the whole count's Poisson deviation, which
-// (2 sqrt(1800) = 85 here) would hide the wall's 49 points.
-TEST(StructureRegistration, ASmallWallAcrossThePlainStreetFixesItAlongTheRoad) {
-  Street street;
-  street.AddRect({-20, -7, 0}, {40, 0, 0}, {0, 14, 0}, 0.2);
-  street.AddRect({-20, -7, 0}, {40, 0, 0}, {0, 0, 6}, 0.2);
-  street.AddRect({-20, 7, 0}, {40, 0, 0}, {0, 0, 6}, 0.2);
-  const size_t plain_points = street.points.size();
-  street.AddRect({5, -0.6, 0.4}, {0, 1.2, 0}, {0, 0, 1.2}, 0.2);
-  const Similarity3 truth = MakeSimilarity(2.0, 10.0, 0.0, {1.0, 2.0, 0.0});
-  std::vector<Eigen::Vector3d> structure;
-  for (size_t i = 0; i < street.points.size(); i += i < plain_points ? 11 : 1) {
-    if (std::abs(street.points[i].x()) < 15)
-      structure.push_back(truth.Inverse() * street.points[i]);
-  }
-  StructureRegistrationOptions options;
-  StructureMap map(ToCloud(street.points), options);
-  const StructureRegistration r = RegisterStructure(
-      structure, map, Perturb(truth, {0.1, 0.0, 0.0}, 0.0, 1.0), Eigen::Vector3d::UnitX(), options);
-  ASSERT_TRUE(r.success) << r.message;
-  EXPECT_GT(structure.size(), 1500u);
-  EXPECT_LT((r.map_from_world.translation - truth.translation).norm(), 0.05);
-  EXPECT_EQ(r.along_ambiguity_m, 0.0);
-  EXPECT_LT(r.along_sigma_m, 0.05);
+  EXPECT_GT(r.along_ambiguity_m, options.search_along_m - finest);
+  EXPECT_GT(r.along_sigma_m, 0.5 * (options.search_along_m - finest));
 }
 
 TEST(StructureRegistration, TooFewPointsIsAValue) {

@@ -102,10 +102,9 @@ struct StructureRegistration {
   // finds other pairs as good. So the fit is also moved along d in steps of the finest distance
   // within the search's reach (search_along_m; without a search, the first correspondence
   // distance), re-paired, and its points within the finest level's loss scale of the map's
-  // surface found: along_ambiguity_m is the largest move whose change of that count (points
-  // gained minus points lost) is not below -2 sqrt(gained + lost), a paired test on the same
-  // points (the reach: nothing fixes it), and along_sigma_m is at least half of it (that
-  // interval taken as +-2 sigma).
+  // surface counted: along_ambiguity_m is the largest move whose count is within twice its
+  // Poisson deviation (2 sqrt(count)) of the fit's (the reach: nothing fixes it), and
+  // along_sigma_m is at least half of it (that interval taken as +-2 sigma).
   double along_ambiguity_m = 0.0;
   int along_points_on_surface = 0;  // the fit's count in that profile
   double condition = 0.0;           // largest / smallest eigenvalue of the translation block
