@@ -225,6 +225,10 @@ int RunAnchor(int argc, char** argv) {
                  "structure: the points registered to the map: sift (the drive's SIFT "
                  "features triangulated along the VO poses) or vo (the VO's own KLT points)")
       ->capture_default_str();
+  app.add_option("--consensus-radius", structure.consensus_radius_m,
+                 "structure: anchors farther than this from their neighbours' agreed placement "
+                 "are registered again from it, metres (0: off)")
+      ->capture_default_str();
   app.add_option("--window", structure.window_m,
                  "structure: road length of the keyframe window, metres")
       ->capture_default_str();

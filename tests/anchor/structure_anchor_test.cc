@@ -231,6 +231,12 @@ TEST(StructureAnchor, FramesWithoutVoPoseAreLostAndBadInputThrows) {
   StructureAnchorOptions bad;
   bad.window_m = 0.0;
   ExpectError([&] { bad.Check(); }, {"window_m must be > 0"});
+  StructureAnchorOptions negative_radius;
+  negative_radius.consensus_radius_m = -0.1;
+  ExpectError([&] { negative_radius.Check(); }, {"consensus_radius_m must be >= 0"});
+  // The SIFT structure of a drive that is not there: the error names it.
+  ExpectError([&] { TriangulateAlongVo(dir / "missing_drive", vo, BuildDbOptions()); },
+              {"missing_drive"});
 }
 
 }  // namespace
