@@ -41,6 +41,7 @@ namespace {
 
 struct Offset {
   double along = 0, across = 0, up = 0, rotation_deg = 0, scale = 1;
+  double yaw_deg = 0, about_left_deg = 0, about_forward_deg = 0;  // the turn's rotation vector
 };
 
 // How far `s` moves the point `at` (metres, split along / across the horizontal `forward` and
@@ -48,16 +49,18 @@ struct Offset {
 Offset OffsetAt(const Similarity3& s, const Eigen::Vector3d& at, const Eigen::Vector3d& forward) {
   const Eigen::Vector3d d = s * at - at;
   const Eigen::Vector3d left = Eigen::Vector3d::UnitZ().cross(forward);
-  return {d.dot(forward), d.dot(left), d.z(), Eigen::AngleAxisd(s.rotation).angle() * 180.0 / M_PI,
-          s.scale};
+  const Eigen::AngleAxisd turn(s.rotation);
+  const Eigen::Vector3d v = turn.angle() * 180.0 / M_PI * turn.axis();
+  return {d.dot(forward), d.dot(left), d.z(),       turn.angle() * 180.0 / M_PI,
+          s.scale,        v.z(),       v.dot(left), v.dot(forward)};
 }
 
 void Print(const char* label, const StructureRegistration& r, const Offset& o) {
   std::printf(
-      "  %-22s along %+6.2f across %+6.2f up %+6.2f m, rot %5.2f deg, scale %.3f; "
-      "inliers %.2f, along_sigma %.2f m%s\n",
-      label, o.along, o.across, o.up, o.rotation_deg, o.scale, r.inlier_share, r.along_sigma_m,
-      r.success ? "" : " (failed)");
+      "  %-22s along %+6.2f across %+6.2f up %+6.2f m, rot %5.2f deg (yaw %+.2f, about left "
+      "%+.2f, about forward %+.2f), scale %.3f; inliers %.2f, along_sigma %.2f m%s\n",
+      label, o.along, o.across, o.up, o.rotation_deg, o.yaw_deg, o.about_left_deg,
+      o.about_forward_deg, o.scale, r.inlier_share, r.along_sigma_m, r.success ? "" : " (failed)");
 }
 
 int Run(int argc, char** argv) {
