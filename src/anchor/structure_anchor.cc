@@ -127,6 +127,22 @@ int VoStructure::SegmentOf(frame_t frame) const {
   return -1;
 }
 
+VoStructure VoStructure::OnFramesOf(const Drive& drive, std::vector<int>* pose_of) const {
+  VoStructure out = *this;
+  std::vector<int> index(drive.frames.size(), -1);
+  size_t j = 0;
+  for (size_t i = 0; i < drive.frames.size(); ++i) {
+    const double t = drive.frames[i].timestamp_s;
+    while (j < poses.size() && poses[j].timestamp_s < t - 1e-3) ++j;
+    if (j < poses.size() && std::abs(poses[j].timestamp_s - t) <= 1e-3) {
+      index[i] = static_cast<int>(j);
+      out.poses[j].frame = drive.frames[i].frame;
+    }
+  }
+  if (pose_of) *pose_of = std::move(index);
+  return out;
+}
+
 namespace {
 
 // Anchors one frame; see the top of structure_anchor.h.
@@ -519,19 +535,6 @@ void ApplyConsensus(const Drive& drive,
 
 }  // namespace
 
-std::vector<int> VoPoseOfFrame(const Drive& drive, const VoStructure& vo) {
-  std::vector<int> pose_of(drive.frames.size(), -1);
-  size_t j = 0;
-  for (size_t i = 0; i < drive.frames.size(); ++i) {
-    const double t = drive.frames[i].timestamp_s;
-    while (j < vo.poses.size() && vo.poses[j].timestamp_s < t - 1e-3) ++j;
-    if (j < vo.poses.size() && std::abs(vo.poses[j].timestamp_s - t) <= 1e-3) {
-      pose_of[i] = static_cast<int>(j);
-    }
-  }
-  return pose_of;
-}
-
 AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
                                          const VoStructure& vo,
                                          const StructureAnchorOptions& options,
@@ -544,14 +547,11 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
     Throw("{}: the drive has no GNSS positions to anchor from", inputs.drive_dir);
   }
   const std::vector<size_t> indices = anchor_internal::SelectFrames(inputs, drive);
-  const std::vector<int> pose_of = VoPoseOfFrame(drive, vo);
+  std::vector<int> pose_of;
+  const VoStructure timed = vo.OnFramesOf(drive, &pose_of);
   if (std::none_of(pose_of.begin(), pose_of.end(), [](int k) { return k >= 0; })) {
     Throw("{}: no VO pose falls on a frame time of drive {} (another drive?)", inputs.vo_path,
           inputs.drive_dir);
-  }
-  VoStructure timed = vo;
-  for (size_t i = 0; i < pose_of.size(); ++i) {
-    if (pose_of[i] >= 0) timed.poses[static_cast<size_t>(pose_of[i])].frame = drive.frames[i].frame;
   }
   const std::unique_ptr<TiledCloud> map =
       anchor_internal::OpenMap(inputs.cloud_path, inputs.tile_dir, inputs.max_whole_points);

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <optional>
+#include <set>
 
 #include <spdlog/spdlog.h>
 
@@ -60,6 +62,38 @@ struct Seen {
   int observations = 0;
 };
 
+constexpr double kMinSpreadM = 5.0;  // a shorter segment's scale would be the GNSS noise
+
+// Metres per VO unit of a segment: the spread of the GNSS fixes at its poses over that of its VO
+// centres (noise raises it by sigma^2 / spread^2: 2 % for 3 m over a 20 m spread; the
+// triangulation's metric gates need no better); none when the fixes spread less than kMinSpreadM.
+std::optional<double> GnssScale(const Drive& drive,
+                                const EnuFrame& local,
+                                const std::vector<const StampedPose*>& poses) {
+  std::vector<Eigen::Vector3d> gnss, centres;
+  for (const StampedPose* pose : poses) {
+    const auto fix = drive.gnss.Interpolate(pose->timestamp_s, drive.max_gap_s);
+    if (!fix) continue;
+    gnss.push_back(local.ToEnu(fix->position));
+    centres.push_back(pose->world_from_cam.translation);
+  }
+  if (gnss.size() < 2) return std::nullopt;
+  Eigen::Vector3d gm = Eigen::Vector3d::Zero(), vm = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < gnss.size(); ++i) {
+    gm += gnss[i];
+    vm += centres[i];
+  }
+  gm /= static_cast<double>(gnss.size());
+  vm /= static_cast<double>(centres.size());
+  double g2 = 0.0, v2 = 0.0;
+  for (size_t i = 0; i < gnss.size(); ++i) {
+    g2 += (gnss[i] - gm).head<2>().squaredNorm();
+    v2 += (centres[i] - vm).squaredNorm();
+  }
+  if (g2 / gnss.size() < kMinSpreadM * kMinSpreadM || v2 <= 0.0) return std::nullopt;
+  return std::sqrt(g2 / v2);
+}
+
 }  // namespace
 
 VoStructure TriangulateAlongVo(const std::string& drive_dir,
@@ -74,11 +108,7 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
   SiftStructureSummary sums;
 
   // Poses on the drive's frames, by segment.
-  VoStructure timed = vo;
-  const std::vector<int> pose_of = VoPoseOfFrame(drive, vo);
-  for (size_t i = 0; i < pose_of.size(); ++i) {
-    if (pose_of[i] >= 0) timed.poses[static_cast<size_t>(pose_of[i])].frame = drive.frames[i].frame;
-  }
+  const VoStructure timed = vo.OnFramesOf(drive);
   std::map<int, std::vector<const StampedPose*>> by_segment;
   for (const StampedPose& pose : timed.poses) {
     if (pose.frame == kInvalidFrame) continue;
@@ -88,40 +118,16 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
 
   VoStructure out = vo;
   out.points.clear();
-  std::map<int, bool> replaced;
+  std::set<int> replaced;
   double track_length_sum = 0.0;
   for (const auto& [segment, poses] : by_segment) {
     if (poses.size() < 2) continue;
-    // Scale: the spread of the GNSS fixes over that of the VO centres (noise raises it by
-    // sigma^2 / spread^2: 2 % for 3 m over a 20 m spread; the triangulation's metric gates need
-    // no better).
-    std::vector<Eigen::Vector3d> gnss, centres;
-    for (const StampedPose* pose : poses) {
-      const auto fix = drive.gnss.Interpolate(pose->timestamp_s, drive.max_gap_s);
-      if (!fix) continue;
-      gnss.push_back(local.ToEnu(fix->position));
-      centres.push_back(pose->world_from_cam.translation);
-    }
-    if (gnss.size() < 2) continue;
-    Eigen::Vector3d gm = Eigen::Vector3d::Zero(), vm = Eigen::Vector3d::Zero();
-    for (size_t i = 0; i < gnss.size(); ++i) {
-      gm += gnss[i];
-      vm += centres[i];
-    }
-    gm /= gnss.size();
-    vm /= centres.size();
-    double g2 = 0.0, v2 = 0.0;
-    for (size_t i = 0; i < gnss.size(); ++i) {
-      g2 += (gnss[i] - gm).head<2>().squaredNorm();
-      v2 += (centres[i] - vm).squaredNorm();
-    }
-    constexpr double kMinSpreadM = 5.0;  // shorter: the GNSS noise is the scale
-    if (g2 / gnss.size() < kMinSpreadM * kMinSpreadM || v2 <= 0.0) {
+    const std::optional<double> scale = GnssScale(drive, local, poses);
+    if (!scale) {
       spdlog::info("VO segment {}: GNSS spread below {} m, its VO points kept", segment,
                    kMinSpreadM);
       continue;
     }
-    const double scale = std::sqrt(g2 / v2);
     const Eigen::Matrix3d level =
         LevelNorthFromCam() * poses.front()->world_from_cam.rotation.conjugate().toRotationMatrix();
     const Eigen::Vector3d first = poses.front()->world_from_cam.translation;
@@ -132,7 +138,7 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
       PositionSample sample;
       sample.timestamp_s = pose->timestamp_s;
       sample.position =
-          local.ToGeodetic(scale * (level * (pose->world_from_cam.translation - first)));
+          local.ToGeodetic(*scale * (level * (pose->world_from_cam.translation - first)));
       sample.enu_from_cam =
           Eigen::Quaterniond(level * pose->world_from_cam.rotation.toRotationMatrix()).normalized();
       sample.frame = pose->frame;
@@ -154,7 +160,7 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
     const EnuFrame db_enu(*db.EnuOrigin());
     const auto to_vo = [&](const Eigen::Vector3d& in_db) {
       const Eigen::Vector3d x = local.ToEnu(db_enu.ToGeodetic(in_db));
-      return Eigen::Vector3d(level.transpose() * x / scale + first);
+      return Eigen::Vector3d(level.transpose() * x / *scale + first);
     };
     std::map<int64_t, Seen> seen;
     for (const DbFrame& frame : db.ReadFrames()) {
@@ -185,7 +191,7 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
     }
     sums.points += static_cast<int64_t>(seen.size());
     ++sums.segments;
-    replaced[segment] = true;
+    replaced.insert(segment);
   }
   // Segments not triangulated keep the VO's own points.
   for (const VoPoint& p : vo.points) {

@@ -107,11 +107,11 @@ struct VoStructure {
   static VoStructure Read(const std::string& trajectory_path, const std::string& points_path = "");
   // The same from an odometry run in memory (VoOptions::keep_points).
   static VoStructure FromResult(const VoResult& result);
+  // A copy whose poses carry the frame numbers of `drive`: the frame at each pose's time (within
+  // 1 ms; a pose on no frame keeps its own). `pose_of` (optional) gets, per drive frame, the index
+  // of its pose in `poses`, or -1.
+  VoStructure OnFramesOf(const Drive& drive, std::vector<int>* pose_of = nullptr) const;
 };
-
-// The VO pose of each frame of `drive` (index into vo.poses, or -1): the pose at the frame's time
-// (within 1 ms).
-std::vector<int> VoPoseOfFrame(const Drive& drive, const VoStructure& vo);
 
 // Anchors the selected frames of a drive (inputs.frames / inputs.every; photos_dir unused) by
 // registering `vo`'s structure to the map. Frames without a VO pose are `lost`. Throws Error as
