@@ -9,15 +9,20 @@
 //     the truth than this);
 // (2) per window of frames about every `--every`-th frame (the anchors' window): the fit from the
 //     truth with the anchors' whole schedule and seed search, and from seeds 1 m off along and
-//     across the road: how far the registration lands from the truth when nothing else is wrong.
-//
-// Usage: epiloc_bench_structure_bound --db route.sqlite --cloud map.ply [--cloud-origin
-// LAT,LON,ALT]
-//        [--half-window 20]
-//        [--every 20] [--range 35] [--min-observations 3] [--grid]
+//     across the road, and the seed search followed by the fine levels alone: how far the
+//     registration lands from the truth when nothing else is wrong.
 // (3) with --grid: how many points lie within 0.1 m of the map's surface (the finest level's loss
-//     scale) over a grid of horizontal moves from the truth, for the whole drive and each window:
-//     where the map itself puts the structure, no optimiser involved.
+//     scale) over a grid of horizontal moves from the truth, for the whole drive and each window,
+//     and for each window the same counting only points whose map surface is a plane facing along
+//     the road (the only points that measure along it): where the map itself puts the structure,
+//     no optimiser involved.
+// (4) with --depth: where the map's surface is a plane facing the camera, how far beyond the
+//     structure point it lies along the viewing ray, by depth: a structure triangulated along a
+//     track that is too short (or too long) lies nearer (farther) than the LiDAR's surfaces.
+//
+// Usage: epiloc_bench_structure_bound --db route.sqlite --cloud map.ply
+//        [--cloud-origin LAT,LON,ALT] [--voxel 0.2] [--half-window 20] [--every 20] [--range 35]
+//        [--min-observations 3] [--grid] [--depth]
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -26,6 +31,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include "epiloc/anchor/map_sidecar.h"
@@ -77,6 +83,12 @@ int Run(int argc, char** argv) {
                  "world's: 49,8.4,115)");
   app.add_option("--half-window", half_window, "Frames either side of a window's centre");
   app.add_option("--every", every, "Window centres every this many frames");
+  double voxel_m = 0.2;
+  app.add_option("--voxel", voxel_m, "Map voxel side, metres (0: none; `anchor` uses 0.2)");
+  bool with_depth = false;
+  app.add_flag("--depth", with_depth,
+               "Also the offset of the map's surfaces facing the camera from the structure, by "
+               "depth (a structure biased in depth, or a map shifted along the road)");
   app.add_option("--range", range_m, "Points within this of the centre camera, metres");
   app.add_option("--min-observations", min_observations,
                  "Points seen by at least this many frames");
@@ -94,7 +106,8 @@ int Run(int argc, char** argv) {
   const Geodetic map_origin =
       cloud_origin.empty() ? sidecar->enu_origin : ParseGeodetic(cloud_origin, "--cloud-origin");
   const Eigen::Vector3f map_in_db = EnuFrame(*db_origin).ToEnu(map_origin).cast<float>();
-  PointCloud cloud = VoxelFilter(ReadPointCloud(cloud_path), 0.2);  // as `anchor` does
+  PointCloud cloud = ReadPointCloud(cloud_path);
+  if (voxel_m > 0) cloud = VoxelFilter(cloud, voxel_m);
   for (Eigen::Vector3f& p : cloud.positions) p += map_in_db;
   cloud.intensity.clear();
   cloud.rgb.clear();
@@ -114,10 +127,61 @@ int Run(int argc, char** argv) {
     }
   }
   std::printf(
-      "%s: %zu frames, %zu points; map %zu points (0.2 m voxels), %+.3f %+.3f %+.3f m "
+      "%s: %zu frames, %zu points; map %zu points (%.2f m voxels), %+.3f %+.3f %+.3f m "
       "from the database's origin\n",
-      db_path.c_str(), frames.size(), points.size(), map.size(), map_in_db.x(), map_in_db.y(),
-      map_in_db.z());
+      db_path.c_str(), frames.size(), points.size(), map.size(), voxel_m, map_in_db.x(),
+      map_in_db.y(), map_in_db.z());
+
+  // (4) Depth: each point seen from its nearest observing camera; where the map's surface there
+  // is a plane facing that camera (normal within 45 deg of the viewing ray), the point's signed
+  // distance to it along the ray (positive: the map's surface lies beyond the point). A structure
+  // triangulated too near (or a map shifted away) shows a positive median growing with depth
+  // (or not).
+  if (with_depth) {
+    std::map<int64_t, std::pair<double, size_t>> nearest_camera;  // point -> (distance, frame)
+    for (size_t i = 0; i < frames.size(); ++i) {
+      for (int64_t id : seen[i]) {
+        const double d = (points[id] - frames[i].center_in_enu).norm();
+        auto it = nearest_camera.find(id);
+        if (it == nearest_camera.end() || d < it->second.first) nearest_camera[id] = {d, i};
+      }
+    }
+    const std::vector<double> edges = {0, 5, 8, 12, 16, 20, 25, 35, 60};
+    std::vector<std::vector<double>> along_ray(edges.size() - 1);
+    for (const auto& [id, at] : nearest_camera) {
+      if (observations[id] < min_observations) continue;
+      const Eigen::Vector3d& x = points[id];
+      const Eigen::Vector3d ray = (x - frames[at.second].center_in_enu).normalized();
+      const int n = map.Nearest(x, 1.0);
+      if (n < 0) continue;
+      const Eigen::Matrix3d proj = map.Projector(n).cast<double>();
+      // A plane's projector has trace 1 (n n^T); lines 2, points 3.
+      if (std::abs(proj.trace() - 1.0) > 1e-3) continue;
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(proj);
+      const Eigen::Vector3d normal = es.eigenvectors().col(2);
+      const double c = normal.dot(ray);
+      if (std::abs(c) < std::cos(M_PI / 4)) continue;
+      const double signed_along_normal = normal.dot(map.Point(n).cast<double>() - x);
+      const double t = signed_along_normal / c;  // along the ray to the plane
+      if (std::abs(t) > 1.0) continue;
+      for (size_t b = 0; b + 1 < edges.size(); ++b) {
+        if (at.first >= edges[b] && at.first < edges[b + 1]) along_ray[b].push_back(t);
+      }
+    }
+    std::printf(
+        "offset of the map's facing surface from the structure along the viewing ray "
+        "(positive: beyond), by depth:\n");
+    for (size_t b = 0; b + 1 < edges.size(); ++b) {
+      std::vector<double>& v = along_ray[b];
+      if (v.empty()) continue;
+      std::sort(v.begin(), v.end());
+      std::printf(
+          "  %4.0f-%-4.0f m: %6zu points, median %+.3f m, quartiles %+.3f %+.3f (%+.2f %% of "
+          "depth)\n",
+          edges[b], edges[b + 1], v.size(), v[v.size() / 2], v[v.size() / 4], v[3 * v.size() / 4],
+          100.0 * v[v.size() / 2] / (0.5 * (edges[b] + edges[b + 1])));
+    }
+  }
 
   // (1) The whole drive: fine levels from the truth, the anchor's schedule and its parts.
   StructureRegistrationOptions fine = options;
@@ -159,12 +223,12 @@ int Run(int argc, char** argv) {
 
   // The count of points on the map's surfaces over a grid of horizontal moves from the truth.
   const auto grid = [&](const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& fwd,
-                        double tol) {
+                        double tol, bool facing) {
     const Eigen::Vector3d lft = Eigen::Vector3d::UnitZ().cross(fwd);
     std::printf(
-        "  points within %.2f m of the map's surface, moved along (rows) and across "
+        "  points within %.2f m of the map's surface%s, moved along (rows) and across "
         "(columns, left positive):\n",
-        tol);
+        tol, facing ? " where it is a plane facing along the road" : "");
     int best = -1;
     double ba = 0, bc = 0;
     for (double a = -2.0; a <= 2.01; a += 0.25) {
@@ -175,8 +239,11 @@ int Run(int argc, char** argv) {
           const Eigen::Vector3d x = p + a * fwd + c * lft;
           const int n = map.Nearest(x, 0.5);
           if (n < 0) continue;
-          const double d =
-              (map.Projector(n).cast<double>() * (x - map.Point(n).cast<double>())).norm();
+          const Eigen::Matrix3d proj = map.Projector(n).cast<double>();
+          if (facing && (std::abs(proj.trace() - 1.0) > 1e-3 || fwd.dot(proj * fwd) < 0.5)) {
+            continue;
+          }
+          const double d = (proj * (x - map.Point(n).cast<double>())).norm();
           count += d < tol;
         }
         std::printf(" %6d", count);
@@ -192,11 +259,13 @@ int Run(int argc, char** argv) {
   };
   if (with_grid) {
     std::printf("whole drive, moves east (rows) and north (columns):\n");
-    grid(all, Eigen::Vector3d::UnitX(), 0.1);
+    grid(all, Eigen::Vector3d::UnitX(), 0.1, false);
   }
 
   // (2) Windows.
-  std::vector<double> from_truth, from_off;
+  std::vector<double> from_truth, from_off, search_fine_truth, search_fine_off;
+  StructureRegistrationOptions search_fine = fine;
+  search_fine.search_step_m = options.search_step_m;
   for (size_t c = 0; c < frames.size(); c += every) {
     const Eigen::Vector3d centre = frames[c].center_in_enu;
     const double heading = frames[c].heading_deg * M_PI / 180.0;
@@ -218,7 +287,10 @@ int Run(int argc, char** argv) {
     }
     std::printf("frame %lld (%zu points):\n", static_cast<long long>(frames[c].frame),
                 window.size());
-    if (with_grid) grid(window, forward, 0.1);
+    if (with_grid) {
+      grid(window, forward, 0.1, false);
+      grid(window, forward, 0.1, true);
+    }
     const auto run = [&](const char* label, const Eigen::Vector3d& seed_move,
                          const StructureRegistrationOptions& o, std::vector<double>* errors) {
       Similarity3 seed;
@@ -237,6 +309,9 @@ int Run(int argc, char** argv) {
     run("anchor's, 1 m behind", -forward, options, &from_off);
     run("anchor's, 1 m left", left, options, &from_off);
     run("anchor's, 1 m right", -left, options, &from_off);
+    run("search + fine, truth", Eigen::Vector3d::Zero(), search_fine, &search_fine_truth);
+    run("search + fine, 2 m ahead", 2 * forward, search_fine, &search_fine_off);
+    run("search + fine, 3 m left", 3 * left, search_fine, &search_fine_off);
   }
   const auto summary = [](const char* label, std::vector<double> v) {
     if (v.empty()) return;
@@ -246,6 +321,8 @@ int Run(int argc, char** argv) {
   };
   summary("windows, anchor's schedule from the truth", from_truth);
   summary("windows, anchor's schedule from 1 m off", from_off);
+  summary("windows, search + fine levels from the truth", search_fine_truth);
+  summary("windows, search + fine levels from 2-3 m off", search_fine_off);
   return 0;
 }
 
