@@ -4,8 +4,11 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <unordered_map>
+#include <vector>
 
 #include <spdlog/spdlog.h>
+#include <Eigen/Eigenvalues>
 
 #include "anchor_internal.h"
 #include "epiloc/anchor/map_sidecar.h"
@@ -207,6 +210,106 @@ PointCloud MergeScans(const Drive& drive,
     summary->num_points_in = points_in;
   }
   return merged;
+}
+
+TrackScaleCheck CheckTrackScale(const Drive& drive,
+                                const EnuFrame& map_frame,
+                                const BuildMapOptions& options,
+                                double max_stretch,
+                                double step,
+                                int64_t max_points) {
+  options.Check();
+  EPILOC_CHECK(std::isfinite(max_stretch) && max_stretch > 0 && max_stretch < 0.5,
+               "track scale check: max_stretch must be in (0, 0.5), got {}", max_stretch);
+  EPILOC_CHECK(std::isfinite(step) && step > 0 && step <= max_stretch,
+               "track scale check: step must be in (0, max_stretch], got {}", step);
+  EPILOC_CHECK(max_points >= 1, "track scale check: max_points must be >= 1, got {}", max_points);
+  if (drive.lidar.empty())
+    Throw("{}: the drive has no LiDAR scans (drive.json 'lidar')", drive.dir);
+  TrackScaleCheck out;
+  // Cells of a surface patch: several scan lines of each scan, flat enough to be a plane.
+  constexpr double kCellM = 0.5;
+  constexpr int64_t kMinCellPoints = 10;
+  out.voxel_m = kCellM;
+  out.num_scans = static_cast<int64_t>(drive.lidar.size());
+  // Each scan's points in the map frame and its horizontal offset from the first scan.
+  std::vector<PointCloud> scans(drive.lidar.size());
+  ParallelFor(out.num_scans, options.num_threads, [&](int64_t i) {
+    scans[i] = ReadScanInMap(drive, drive.lidar[i], map_frame, options);
+    scans[i].intensity.clear();
+  });
+  int64_t total = 0;
+  for (const PointCloud& c : scans) total += static_cast<int64_t>(c.size());
+  const int64_t stride = std::max<int64_t>(1, (total + max_points - 1) / max_points);
+  const Eigen::Vector3d first = map_frame.ToEnu(drive.lidar.front().sensor_position);
+  std::vector<Eigen::Vector3d> offsets(drive.lidar.size());
+  for (size_t i = 0; i < drive.lidar.size(); ++i) {
+    Eigen::Vector3d d = map_frame.ToEnu(drive.lidar[i].sensor_position) - first;
+    d.z() = 0.0;
+    offsets[i] = d;
+    out.span_m = std::max(out.span_m, d.norm());
+    out.num_points += (static_cast<int64_t>(scans[i].size()) + stride - 1) / stride;
+  }
+  const int n = static_cast<int>(std::lround(max_stretch / step));
+  for (int k = -n; k <= n; ++k) out.factors.push_back(1.0 + k * step);
+  out.thickness_m.assign(out.factors.size(), 0.0);
+  out.shared_voxels.assign(out.factors.size(), 0);
+  const double inverse = 1.0 / out.voxel_m;
+  struct Cell {
+    int scan = -1;        // the first scan with a point here
+    bool shared = false;  // points of another scan too
+    int64_t n = 0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d sum2 = Eigen::Matrix3d::Zero();
+  };
+  ParallelFor(static_cast<int64_t>(out.factors.size()), options.num_threads, [&](int64_t f) {
+    const double stretch = out.factors[f] - 1.0;
+    std::unordered_map<uint64_t, Cell> cells;
+    cells.reserve(static_cast<size_t>(out.num_points / 8));
+    for (size_t i = 0; i < scans.size(); ++i) {
+      const Eigen::Vector3d shift = stretch * offsets[i] - first;  // about the first scan
+      for (size_t j = 0; j < scans[i].size(); j += static_cast<size_t>(stride)) {
+        const Eigen::Vector3d x = scans[i].positions[j].cast<double>() + shift;
+        // 21 bits per axis about the first scan: +-52 km at 5 cm.
+        uint64_t key = 0;
+        for (int a = 0; a < 3; ++a) {
+          const int64_t c = static_cast<int64_t>(std::floor(x[a] * inverse)) + (int64_t{1} << 20);
+          key = (key << 21) | (static_cast<uint64_t>(c) & ((uint64_t{1} << 21) - 1));
+        }
+        Cell& cell = cells[key];
+        if (cell.scan < 0) cell.scan = static_cast<int>(i);
+        cell.shared |= cell.scan != static_cast<int>(i);
+        ++cell.n;
+        cell.sum += x;
+        cell.sum2 += x * x.transpose();
+      }
+    }
+    double thickness = 0.0;
+    int64_t shared = 0;
+    for (const auto& [key, cell] : cells) {
+      if (!cell.shared || cell.n < kMinCellPoints) continue;
+      const Eigen::Vector3d mean = cell.sum / static_cast<double>(cell.n);
+      const Eigen::Matrix3d covariance =
+          cell.sum2 / static_cast<double>(cell.n) - mean * mean.transpose();
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+      eigen.computeDirect(covariance, Eigen::EigenvaluesOnly);
+      thickness += std::sqrt(std::max(eigen.eigenvalues()[0], 0.0));
+      ++shared;
+    }
+    out.shared_voxels[f] = shared;
+    out.thickness_m[f] = shared > 0 ? thickness / static_cast<double>(shared) : INFINITY;
+  });
+  const size_t best = static_cast<size_t>(
+      std::min_element(out.thickness_m.begin(), out.thickness_m.end()) - out.thickness_m.begin());
+  out.best_factor = out.factors[best];
+  if (best > 0 && best + 1 < out.factors.size()) {
+    const double a = out.thickness_m[best - 1];
+    const double b = out.thickness_m[best];
+    const double c = out.thickness_m[best + 1];
+    const double curvature = a - 2.0 * b + c;
+    if (curvature > 0) out.best_factor += 0.5 * step * (a - c) / curvature;
+  }
+  return out;
 }
 
 BuildMapSummary BuildMap(const std::string& drive_dir,

@@ -1,12 +1,15 @@
 #include <cstdio>
 #include <string>
 
+#include <spdlog/spdlog.h>
+
 #include "cli_common.h"
 #include "epiloc/anchor/build_map.h"
 #include "epiloc/anchor/map_sidecar.h"
 #include "epiloc/cli/commands.h"
 #include "epiloc/core/error.h"
 #include "epiloc/core/progress.h"
+#include "epiloc/io/drive.h"
 
 namespace epiloc {
 
@@ -59,6 +62,11 @@ int RunBuildMap(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--spin", spin, "Spin direction seen from above: cw | ccw")->capture_default_str();
   app.add_option("--threads", options.num_threads, "Worker threads")->capture_default_str();
+  bool check_scale = false;
+  app.add_flag("--check-track-scale", check_scale,
+               "Also merge the scans with the track stretched by 0.94-1.06 and report the "
+               "stretch with which the scans agree best (a track with slow position errors draws "
+               "shared surfaces twice, thicker); the map written is unstretched");
   if (auto code = Parse(app, flags, argc, argv)) return *code;
   // The origin sidecar <out>.json is written too: it must not be an input either.
   CheckCommandOutputs({{"--out", out_path}, {"--out (sidecar)", SidecarPath(out_path)}},
@@ -76,6 +84,34 @@ int RunBuildMap(int argc, char** argv) {
   } else if (!db_path.empty()) {
     origin = DatabaseEnuOrigin(db_path);
     origin_source = "database " + db_path;
+  }
+  if (check_scale) {
+    const Drive drive = LoadDrive(drive_dir);
+    if (drive.lidar.empty()) {
+      Throw("{}: the drive has no LiDAR scans (drive.json 'lidar')", drive_dir);
+    }
+    const Geodetic check_origin =
+        origin ? *origin : drive.lidar.front().sensor_position;  // any: a translation
+    const TrackScaleCheck c = CheckTrackScale(drive, EnuFrame(check_origin), options);
+    std::printf("track scale check: %lld scans over %.1f m, %lld points, %.2f m cells\n",
+                static_cast<long long>(c.num_scans), c.span_m, static_cast<long long>(c.num_points),
+                c.voxel_m);
+    for (size_t i = 0; i < c.factors.size(); ++i) {
+      std::printf("  stretch %.3f: shared surfaces %.4f m thick (%lld cells)\n", c.factors[i],
+                  c.thickness_m[i], static_cast<long long>(c.shared_voxels[i]));
+    }
+    const double change_m = (c.best_factor - 1.0) * c.span_m;
+    std::printf(
+        "track scale check: the scans agree best with the track stretched by %.3f (%+.2f m "
+        "over its %.1f m)\n",
+        c.best_factor, change_m, c.span_m);
+    // Twice the check's step: one step is its resolution.
+    if (std::abs(c.best_factor - 1.0) >= 0.01) {
+      spdlog::warn(
+          "{}: the track's positions and its LiDAR disagree by {:+.1f} % of distance: maps, "
+          "databases and ground truth from this track inherit it",
+          drive_dir, 100.0 * (c.best_factor - 1.0));
+    }
   }
   Progress progress("build-map", 0);
   const BuildMapSummary s =

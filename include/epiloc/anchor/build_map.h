@@ -27,6 +27,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "epiloc/cloud/point_cloud.h"
 #include "epiloc/cloud/render.h"
@@ -112,6 +113,37 @@ void ColorizeCloud(const Drive& drive,
                    PointCloud* cloud,
                    const ProgressCallback& progress = nullptr,
                    BuildMapSummary* summary = nullptr);
+
+// How well a drive's scans agree when its track is stretched: the scans merged as MergeScans
+// does, with each scan's horizontal offset from the first scan's position multiplied by a factor
+// (1 +- max_stretch in steps of `step`; heights and orientations kept). Scans share surfaces (a
+// facade, a pole, a car seen from several places); a track whose positions are too short or too
+// long draws each shared surface several times, a little apart, so it gets thicker. Over cells of
+// 0.5 m (a patch of surface holding several scan lines of each scan) that hold at least 10 points
+// of two or more scans, the mean thickness (square root of the smallest eigenvalue of the points'
+// covariance) is computed for each factor; the factor with the thinnest surfaces is the stretch of
+// the track the LiDAR agrees with (surfaces a shift slides onto themselves, as the road, do not
+// change; counting occupied voxels instead favours any shrinking, which shrinks the map). A
+// GNSS/INS track with slow position errors can be off by percents over a short drive (KITTI
+// 2011_09_26_drive_0005, see README), and every map, database and ground truth built from it
+// inherits that. Uses at most max_points scan points (every k-th of each scan). Throws Error as
+// MergeScans does, and naming an invalid argument.
+struct TrackScaleCheck {
+  std::vector<double> factors;         // stretch factors tried, ascending
+  std::vector<double> thickness_m;     // mean thickness of the shared surface cells per factor
+  std::vector<int64_t> shared_voxels;  // cells with points of two or more scans per factor
+  double best_factor = 1.0;  // the thinnest surfaces, refined by a parabola through its neighbours
+  double voxel_m = 0.0;      // cell side
+  int64_t num_points = 0;    // scan points used
+  int64_t num_scans = 0;
+  double span_m = 0.0;  // largest horizontal distance of a scan from the first
+};
+TrackScaleCheck CheckTrackScale(const Drive& drive,
+                                const EnuFrame& map_frame,
+                                const BuildMapOptions& options,
+                                double max_stretch = 0.06,
+                                double step = 0.005,
+                                int64_t max_points = 4000000);
 
 // Builds the map of the drive in `drive_dir` and writes it to `out_path` (any format
 // WritePointCloud writes; PLY recommended) with the sidecar SidecarPath(out_path). The ENU origin
