@@ -9,6 +9,7 @@
 #include <fstream>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <random>
 
 #include <spdlog/spdlog.h>
@@ -454,11 +455,62 @@ Similarity3 ImpliedSimilarity(const AnchorResult& a, const Rigid3d& world_from_c
   return s;
 }
 
+// A posed anchor of the consensus pass.
+struct Posed {
+  size_t k;  // index into AnchorDriveResult::frames
+  int pose;  // index into VoStructure::poses
+};
+struct Placements {
+  Eigen::Vector2d median;
+  std::vector<std::pair<Eigen::Vector2d, size_t>> each;  // placement, index into `anchors`
+};
+
+// The horizontal placements of anchor `i`'s camera by the similarities of the anchors around it
+// (same segment, map centres within half the window; `i` itself included when include_self) and
+// their median per axis; nullopt below three.
+std::optional<Placements> PlaceByNeighbours(const std::vector<PlacedAnchor>& anchors,
+                                            size_t i,
+                                            bool include_self,
+                                            double window_m) {
+  const PlacedAnchor& a = anchors[i];
+  Placements p;
+  for (size_t j = 0; j < anchors.size(); ++j) {
+    if (anchors[j].segment != a.segment || (j == i && !include_self)) continue;
+    if ((anchors[j].map_centre - a.map_centre).head<2>().norm() > 0.5 * window_m) continue;
+    p.each.push_back({(anchors[j].map_from_world * a.vo_centre).head<2>(), j});
+  }
+  if (p.each.size() < 3) return std::nullopt;
+  std::vector<double> xs, ys;
+  for (const auto& e : p.each) {
+    xs.push_back(e.first.x());
+    ys.push_back(e.first.y());
+  }
+  std::nth_element(xs.begin(), xs.begin() + xs.size() / 2, xs.end());
+  std::nth_element(ys.begin(), ys.begin() + ys.size() / 2, ys.end());
+  p.median = Eigen::Vector2d(xs[xs.size() / 2], ys[ys.size() / 2]);
+  return p;
+}
+
+// The anchors of `posed` as the consensus pass sees them.
+std::vector<PlacedAnchor> Place(const std::vector<Posed>& posed,
+                                const VoStructure& vo,
+                                const AnchorDriveResult& out) {
+  std::vector<PlacedAnchor> placed;
+  for (const Posed& p : posed) {
+    const AnchorResult& a = out.frames[p.k];
+    const Rigid3d& world_from_cam = vo.poses[static_cast<size_t>(p.pose)].world_from_cam;
+    placed.push_back({ImpliedSimilarity(a, world_from_cam), world_from_cam.translation,
+                      a.map_from_cam.translation, vo.SegmentOf(a.frame)});
+  }
+  return placed;
+}
+
 // The consensus pass (StructureAnchorOptions::consensus_radius_m): each posed anchor's camera is
 // placed by the similarities of the posed anchors around it (same segment, within half the window
 // along the road); where most of them agree (within the radius of their median, at least three)
 // and the anchor's own fit does not, it is registered again from the agreeing similarity nearest
-// the median, with the fine levels only.
+// the median, with the fine levels only. Then an ok anchor whose neighbours' placements (itself
+// left out) have their median beyond 2 max_along_sigma_m of it is not ok.
 void ApplyConsensus(const Drive& drive,
                     const std::vector<size_t>& indices,
                     const std::vector<int>& pose_of,
@@ -467,48 +519,22 @@ void ApplyConsensus(const Drive& drive,
                     const EnuFrame& map_frame,
                     const StructureAnchorOptions& options,
                     AnchorDriveResult* out) {
-  struct Posed {
-    size_t k;  // index into out->frames
-    int pose;
-    int segment;
-    Similarity3 sim;
-  };
   std::vector<Posed> posed;
   for (size_t k = 0; k < out->frames.size(); ++k) {
-    const AnchorResult& a = out->frames[k];
     const int pose = pose_of[indices[k]];
-    if (!a.has_pose || pose < 0) continue;
-    const Rigid3d& world_from_cam = vo.poses[static_cast<size_t>(pose)].world_from_cam;
-    posed.push_back({k, pose, vo.SegmentOf(a.frame), ImpliedSimilarity(a, world_from_cam)});
+    if (out->frames[k].has_pose && pose >= 0) posed.push_back({k, pose});
   }
+  const std::vector<PlacedAnchor> placed = Place(posed, vo, *out);
   const double radius = options.consensus_radius_m;
   std::vector<std::pair<size_t, Similarity3>> redo;
-  for (const Posed& i : posed) {
-    const Eigen::Vector3d c = vo.poses[static_cast<size_t>(i.pose)].world_from_cam.translation;
-    const Eigen::Vector3d own = out->frames[i.k].map_from_cam.translation;
-    std::vector<std::pair<Eigen::Vector2d, const Posed*>> predictions;
-    for (const Posed& j : posed) {
-      if (j.segment != i.segment) continue;
-      if ((out->frames[j.k].map_from_cam.translation - own).head<2>().norm() >
-          0.5 * options.window_m) {
-        continue;
-      }
-      predictions.push_back({(j.sim * c).head<2>(), &j});
-    }
-    if (predictions.size() < 3) continue;
-    std::vector<double> xs, ys;
-    for (const auto& p : predictions) {
-      xs.push_back(p.first.x());
-      ys.push_back(p.first.y());
-    }
-    std::nth_element(xs.begin(), xs.begin() + xs.size() / 2, xs.end());
-    std::nth_element(ys.begin(), ys.begin() + ys.size() / 2, ys.end());
-    const Eigen::Vector2d median(xs[xs.size() / 2], ys[ys.size() / 2]);
+  for (size_t i = 0; i < placed.size(); ++i) {
+    const std::optional<Placements> p = PlaceByNeighbours(placed, i, true, options.window_m);
+    if (!p) continue;
     int agreeing = 0;
-    const Posed* nearest = nullptr;
+    size_t nearest = i;
     double nearest_m = INFINITY;
-    for (const auto& [p, j] : predictions) {
-      const double d = (p - median).norm();
+    for (const auto& [at, j] : p->each) {
+      const double d = (at - p->median).norm();
       if (d > radius) continue;
       ++agreeing;
       if (d < nearest_m) {
@@ -516,9 +542,9 @@ void ApplyConsensus(const Drive& drive,
         nearest = j;
       }
     }
-    if (agreeing < 3 || 2 * agreeing <= static_cast<int>(predictions.size())) continue;
-    if ((own.head<2>() - median).norm() <= radius || nearest == nullptr || nearest == &i) continue;
-    redo.push_back({i.k, nearest->sim});
+    if (agreeing < 3 || 2 * agreeing <= static_cast<int>(p->each.size())) continue;
+    if ((placed[i].map_centre.head<2>() - p->median).norm() <= radius || nearest == i) continue;
+    redo.push_back({posed[i].k, placed[nearest].map_from_world});
   }
   ParallelFor(static_cast<int64_t>(redo.size()), options.num_threads, [&](int64_t r) {
     const auto& [k, sim] = redo[static_cast<size_t>(r)];
@@ -531,9 +557,37 @@ void ApplyConsensus(const Drive& drive,
   });
   spdlog::debug("structure anchors: {} of {} posed re-registered from their neighbours' consensus",
                 redo.size(), posed.size());
+
+  // An anchor called ok claims its place along the road to 2 sigma = 2 max_along_sigma_m. Where
+  // at least three posed neighbours place its camera (their similarities and the VO, the anchor
+  // itself left out) and their median lies farther than that, the claim does not hold: an anchor
+  // can be sharp and wrong where the structure's error is shaped like a move (KITTI with its
+  // track stretched to agree with the LiDAR: frames 0-20 called ok 0.55-1.44 m off).
+  const double claim_m = 2.0 * options.max_along_sigma_m;
+  const std::vector<std::optional<double>> off =
+      NeighbourDisagreement(Place(posed, vo, *out), options.window_m);
+  for (size_t i = 0; i < posed.size(); ++i) {
+    AnchorResult& a = out->frames[posed[i].k];
+    if (a.status != AnchorStatus::kOk || !off[i] || *off[i] <= claim_m) continue;
+    a.status = AnchorStatus::kRejected;
+    const std::string note = fmt::format(
+        "its neighbours place it {:.2f} m away, beyond its 2 sigma {:.2f} m", *off[i], claim_m);
+    a.message = a.message.empty() ? note : a.message + "; " + note;
+  }
 }
 
 }  // namespace
+
+std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<PlacedAnchor>& anchors,
+                                                         double window_m) {
+  std::vector<std::optional<double>> off(anchors.size());
+  for (size_t i = 0; i < anchors.size(); ++i) {
+    if (const std::optional<Placements> p = PlaceByNeighbours(anchors, i, false, window_m)) {
+      off[i] = (anchors[i].map_centre.head<2>() - p->median).norm();
+    }
+  }
+  return off;
+}
 
 AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
                                          const VoStructure& vo,

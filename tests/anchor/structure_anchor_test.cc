@@ -212,6 +212,45 @@ TEST(StructureAnchor, SiftStructureAlongTheVoPosesPlacesTheSyntheticQuery) {
   EXPECT_EQ(with_sift.ok, 0);
 }
 
+// Six anchors 5 m apart along a VO trajectory scaled 2x into the map: with exact similarities
+// each is placed where its neighbours put it; one similarity 1 m off along the road is that far
+// from its neighbours' median (the median ignores it in theirs); an anchor of another segment,
+// or with fewer than three neighbours within half the window, is not judged.
+TEST(StructureAnchor, NeighbourDisagreementFindsTheAnchorItsNeighboursPlaceElsewhere) {
+  Similarity3 exact;
+  exact.scale = 2.0;
+  exact.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+  exact.translation = Eigen::Vector3d(10, -4, 1);
+  std::vector<PlacedAnchor> anchors;
+  for (int i = 0; i < 6; ++i) {
+    PlacedAnchor a;
+    a.map_from_world = exact;
+    a.vo_centre = Eigen::Vector3d(2.5 * i, 0.1 * i, 0.0);
+    a.map_centre = exact * a.vo_centre;
+    anchors.push_back(a);
+  }
+  const Eigen::Vector3d along = exact.rotation * Eigen::Vector3d::UnitX();
+  anchors[2].map_from_world.translation += along;
+  anchors[2].map_centre += along;
+  std::vector<std::optional<double>> off = NeighbourDisagreement(anchors, 40.0);
+  ASSERT_EQ(off.size(), anchors.size());
+  for (size_t i = 0; i < off.size(); ++i) {
+    ASSERT_TRUE(off[i].has_value()) << i;
+    EXPECT_NEAR(*off[i], i == 2 ? 1.0 : 0.0, 1e-9) << i;
+  }
+  // Another segment is not a neighbour: anchor 5 alone in its segment is not judged.
+  anchors[5].segment = 1;
+  off = NeighbourDisagreement(anchors, 40.0);
+  EXPECT_FALSE(off[5].has_value());
+  EXPECT_TRUE(off[0].has_value());
+  // A window of 24 m: neighbours within 12 m of the anchor's own map centre. Anchor 0 (at 0 m
+  // along the road) has 1 (5 m) and 2 (11 m) only; anchor 2 (moved to 11 m) has 0, 1, 3 and 4.
+  off = NeighbourDisagreement(anchors, 24.0);
+  EXPECT_FALSE(off[0].has_value());
+  ASSERT_TRUE(off[2].has_value());
+  EXPECT_NEAR(*off[2], 1.0, 1e-9);
+}
+
 TEST(StructureAnchor, FramesWithoutVoPoseAreLostAndBadInputThrows) {
   const std::string world = SharedSyntheticWorld();
   VoStructure vo;

@@ -33,6 +33,7 @@
 // triangulated along the VO poses (structure_sift.h) are placed to 0.05 m (median) there.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -69,7 +70,10 @@ struct StructureAnchorOptions {
   // window's registration peaks a facade period apart, and the anchors that land on another peak
   // than most of their neighbours are registered again from the majority's (see
   // ApplyConsensus in the source). This is the radius of agreement, metres (0: off): twice the
-  // finest correspondence distance, the fine levels' reach.
+  // finest correspondence distance, the fine levels' reach. The pass also takes ok from an anchor
+  // whose neighbours (at least three, itself left out) place it, by the median, farther than its
+  // 2 sigma (2 max_along_sigma_m): neighbouring fits are not independent (their windows overlap),
+  // so agreement proves little, but disagreement disproves the claim.
   double consensus_radius_m = 0.6;
   double min_inlier_share = 0.3;        // reliability: share of points within the finest distance
   double max_rms_m = 0.15;              // reliability: RMS residual of the inliers, metres
@@ -112,6 +116,19 @@ struct VoStructure {
   // of its pose in `poses`, or -1.
   VoStructure OnFramesOf(const Drive& drive, std::vector<int>* pose_of = nullptr) const;
 };
+
+// An anchored camera as the consensus pass sees it (StructureAnchorOptions::consensus_radius_m).
+struct PlacedAnchor {
+  Similarity3 map_from_world;  // the similarity its pose implies (VO world -> map)
+  Eigen::Vector3d vo_centre = Eigen::Vector3d::Zero();   // its camera centre in the VO world
+  Eigen::Vector3d map_centre = Eigen::Vector3d::Zero();  // and in the map
+  int segment = 0;                                       // its VO segment
+};
+// Per anchor, the horizontal distance from its map centre to the median (per axis) of the
+// placements of its VO centre by the other anchors of its segment whose map centres lie within
+// window_m / 2 of its own; nullopt with fewer than three of them.
+std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<PlacedAnchor>& anchors,
+                                                         double window_m);
 
 // Anchors the selected frames of a drive (inputs.frames / inputs.every; photos_dir unused) by
 // registering `vo`'s structure to the map. Frames without a VO pose are `lost`. Throws Error as
