@@ -31,7 +31,6 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include "epiloc/anchor/map_sidecar.h"
@@ -59,6 +58,13 @@ Offset OffsetAt(const Similarity3& s, const Eigen::Vector3d& at, const Eigen::Ve
   const Eigen::Vector3d v = turn.angle() * 180.0 / M_PI * turn.axis();
   return {d.dot(forward), d.dot(left), d.z(),       turn.angle() * 180.0 / M_PI,
           s.scale,        v.z(),       v.dot(left), v.dot(forward)};
+}
+
+// Whether the map's surface at a point (its projector, StructureMap::Projector) is a plane whose
+// normal lies within 45 degrees of `direction` (unit): a plane's projector is n n^T (trace 1;
+// a line's has trace 2, a point's 3), and (n . d)^2 = d^T P d.
+bool PlaneFacing(const Eigen::Matrix3d& projector, const Eigen::Vector3d& direction) {
+  return std::abs(projector.trace() - 1.0) <= 1e-3 && direction.dot(projector * direction) >= 0.5;
 }
 
 void Print(const char* label, const StructureRegistration& r, const Offset& o) {
@@ -155,14 +161,9 @@ int Run(int argc, char** argv) {
       const int n = map.Nearest(x, 1.0);
       if (n < 0) continue;
       const Eigen::Matrix3d proj = map.Projector(n).cast<double>();
-      // A plane's projector has trace 1 (n n^T); lines 2, points 3.
-      if (std::abs(proj.trace() - 1.0) > 1e-3) continue;
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(proj);
-      const Eigen::Vector3d normal = es.eigenvectors().col(2);
-      const double c = normal.dot(ray);
-      if (std::abs(c) < std::cos(M_PI / 4)) continue;
-      const double signed_along_normal = normal.dot(map.Point(n).cast<double>() - x);
-      const double t = signed_along_normal / c;  // along the ray to the plane
+      if (!PlaneFacing(proj, ray)) continue;
+      // Along the ray to the plane: n (n . (q - x)) = P (q - x), and n (n . ray) = P ray.
+      const double t = ray.dot(proj * (map.Point(n).cast<double>() - x)) / ray.dot(proj * ray);
       if (std::abs(t) > 1.0) continue;
       for (size_t b = 0; b + 1 < edges.size(); ++b) {
         if (at.first >= edges[b] && at.first < edges[b + 1]) along_ray[b].push_back(t);
@@ -240,9 +241,7 @@ int Run(int argc, char** argv) {
           const int n = map.Nearest(x, 0.5);
           if (n < 0) continue;
           const Eigen::Matrix3d proj = map.Projector(n).cast<double>();
-          if (facing && (std::abs(proj.trace() - 1.0) > 1e-3 || fwd.dot(proj * fwd) < 0.5)) {
-            continue;
-          }
+          if (facing && !PlaneFacing(proj, fwd)) continue;
           const double d = (proj * (x - map.Point(n).cast<double>())).norm();
           count += d < tol;
         }

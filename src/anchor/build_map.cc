@@ -4,7 +4,9 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <tuple>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <spdlog/spdlog.h>
@@ -113,6 +115,58 @@ PointCloud ReadScanInMap(const Drive& drive,
     if (raw.HasIntensity()) out.intensity.push_back(raw.intensity[i]);
   }
   return out;
+}
+
+// CheckTrackScale for one stretch: the scans (map frame) each moved by stretch * its offset, the
+// mean thickness (sqrt of the smallest covariance eigenvalue) of the cells of side cell_m that
+// hold at least min_points points of two or more scans, and their number (INFINITY, 0: none).
+std::pair<double, int64_t> SharedSurfaceThickness(const std::vector<PointCloud>& scans,
+                                                  const std::vector<Eigen::Vector3d>& offsets,
+                                                  const Eigen::Vector3d& origin,
+                                                  double stretch,
+                                                  size_t stride,
+                                                  double cell_m,
+                                                  int64_t min_points) {
+  struct Cell {
+    int scan = -1;        // the first scan with a point here
+    bool shared = false;  // points of another scan too
+    int64_t n = 0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d sum2 = Eigen::Matrix3d::Zero();
+  };
+  std::unordered_map<uint64_t, Cell> cells;
+  const double inverse = 1.0 / cell_m;
+  for (size_t i = 0; i < scans.size(); ++i) {
+    const Eigen::Vector3d shift = stretch * offsets[i] - origin;  // coordinates about the origin
+    for (size_t j = 0; j < scans[i].size(); j += stride) {
+      const Eigen::Vector3d x = scans[i].positions[j].cast<double>() + shift;
+      // 21 bits per axis: +-2^20 cells about the origin, beyond any one drive's map.
+      uint64_t key = 0;
+      for (int a = 0; a < 3; ++a) {
+        const int64_t c = static_cast<int64_t>(std::floor(x[a] * inverse)) + (int64_t{1} << 20);
+        key = (key << 21) | (static_cast<uint64_t>(c) & ((uint64_t{1} << 21) - 1));
+      }
+      Cell& cell = cells[key];
+      if (cell.scan < 0) cell.scan = static_cast<int>(i);
+      cell.shared |= cell.scan != static_cast<int>(i);
+      ++cell.n;
+      cell.sum += x;
+      cell.sum2 += x * x.transpose();
+    }
+  }
+  double thickness = 0.0;
+  int64_t shared = 0;
+  for (const auto& [key, cell] : cells) {
+    if (!cell.shared || cell.n < min_points) continue;
+    const Eigen::Vector3d mean = cell.sum / static_cast<double>(cell.n);
+    const Eigen::Matrix3d covariance =
+        cell.sum2 / static_cast<double>(cell.n) - mean * mean.transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+    eigen.computeDirect(covariance, Eigen::EigenvaluesOnly);
+    thickness += std::sqrt(std::max(eigen.eigenvalues()[0], 0.0));
+    ++shared;
+  }
+  return {shared > 0 ? thickness / static_cast<double>(shared) : INFINITY, shared};
 }
 
 // The first position of the drive: ground truth, else GNSS, else the first scan.
@@ -254,50 +308,10 @@ TrackScaleCheck CheckTrackScale(const Drive& drive,
   for (int k = -n; k <= n; ++k) out.factors.push_back(1.0 + k * step);
   out.thickness_m.assign(out.factors.size(), 0.0);
   out.shared_voxels.assign(out.factors.size(), 0);
-  const double inverse = 1.0 / out.voxel_m;
-  struct Cell {
-    int scan = -1;        // the first scan with a point here
-    bool shared = false;  // points of another scan too
-    int64_t n = 0;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d sum2 = Eigen::Matrix3d::Zero();
-  };
   ParallelFor(static_cast<int64_t>(out.factors.size()), options.num_threads, [&](int64_t f) {
-    const double stretch = out.factors[f] - 1.0;
-    std::unordered_map<uint64_t, Cell> cells;
-    cells.reserve(static_cast<size_t>(out.num_points / 8));
-    for (size_t i = 0; i < scans.size(); ++i) {
-      const Eigen::Vector3d shift = stretch * offsets[i] - first;  // about the first scan
-      for (size_t j = 0; j < scans[i].size(); j += static_cast<size_t>(stride)) {
-        const Eigen::Vector3d x = scans[i].positions[j].cast<double>() + shift;
-        // 21 bits per axis about the first scan: +-52 km at 5 cm.
-        uint64_t key = 0;
-        for (int a = 0; a < 3; ++a) {
-          const int64_t c = static_cast<int64_t>(std::floor(x[a] * inverse)) + (int64_t{1} << 20);
-          key = (key << 21) | (static_cast<uint64_t>(c) & ((uint64_t{1} << 21) - 1));
-        }
-        Cell& cell = cells[key];
-        if (cell.scan < 0) cell.scan = static_cast<int>(i);
-        cell.shared |= cell.scan != static_cast<int>(i);
-        ++cell.n;
-        cell.sum += x;
-        cell.sum2 += x * x.transpose();
-      }
-    }
-    double thickness = 0.0;
-    int64_t shared = 0;
-    for (const auto& [key, cell] : cells) {
-      if (!cell.shared || cell.n < kMinCellPoints) continue;
-      const Eigen::Vector3d mean = cell.sum / static_cast<double>(cell.n);
-      const Eigen::Matrix3d covariance =
-          cell.sum2 / static_cast<double>(cell.n) - mean * mean.transpose();
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
-      eigen.computeDirect(covariance, Eigen::EigenvaluesOnly);
-      thickness += std::sqrt(std::max(eigen.eigenvalues()[0], 0.0));
-      ++shared;
-    }
-    out.shared_voxels[f] = shared;
-    out.thickness_m[f] = shared > 0 ? thickness / static_cast<double>(shared) : INFINITY;
+    std::tie(out.thickness_m[f], out.shared_voxels[f]) =
+        SharedSurfaceThickness(scans, offsets, first, out.factors[f] - 1.0,
+                               static_cast<size_t>(stride), kCellM, kMinCellPoints);
   });
   const size_t best = static_cast<size_t>(
       std::min_element(out.thickness_m.begin(), out.thickness_m.end()) - out.thickness_m.begin());
