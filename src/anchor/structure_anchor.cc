@@ -13,6 +13,7 @@
 #include <random>
 
 #include <spdlog/spdlog.h>
+#include <Eigen/Geometry>
 
 #include "anchor_internal.h"
 #include "epiloc/cloud/tiled_cloud.h"
@@ -146,7 +147,36 @@ VoStructure VoStructure::OnFramesOf(const Drive& drive, std::vector<int>* pose_o
 
 namespace {
 
-// Anchors one frame; see the top of structure_anchor.h.
+// A registration again from a given similarity (no search), over the given correspondence
+// distances, with a given scale drift.
+struct Restart {
+  Similarity3 sim;
+  double drift_per_m = 0.0;
+  std::vector<double> levels_m;
+};
+
+// The similarity that maps `points` warped by `drift` (at the scale of `sim`) closest, in least
+// squares, to where `sim` maps them unwarped.
+Similarity3 Rewarped(const std::vector<Eigen::Vector3d>& points,
+                     const StructureDrift& drift,
+                     const Similarity3& sim) {
+  if (drift.per_m == 0.0 || points.size() < 3) return sim;
+  const double kappa = drift.per_m * sim.scale;
+  Eigen::Matrix3Xd from(3, points.size()), to(3, points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    from.col(static_cast<Eigen::Index>(i)) = points[i] + kappa * drift.directions[i];
+    to.col(static_cast<Eigen::Index>(i)) = sim * points[i];
+  }
+  const Eigen::Matrix4d t = Eigen::umeyama(from, to, true);
+  Similarity3 out;
+  out.scale = t.block<3, 1>(0, 0).norm();
+  out.rotation = Eigen::Quaterniond(t.block<3, 3>(0, 0) / out.scale).normalized();
+  out.translation = t.block<3, 1>(0, 3);
+  return out;
+}
+
+// Anchors one frame; see the top of structure_anchor.h. With `restart`, from its similarity
+// instead of the GPS seed.
 AnchorResult AnchorOne(const Drive& drive,
                        size_t index,
                        const std::vector<int>& pose_of,
@@ -154,7 +184,9 @@ AnchorResult AnchorOne(const Drive& drive,
                        const std::function<PointCloud(const Eigen::Vector3d&, double)>& load,
                        const EnuFrame& map_frame,
                        const StructureAnchorOptions& options,
-                       const Similarity3* given = nullptr) {
+                       const Restart* restart = nullptr) {
+  const Similarity3* given = restart ? &restart->sim : nullptr;
+  const double drift_per_m = restart ? restart->drift_per_m : 0.0;
   const auto start = std::chrono::steady_clock::now();
   const FrameRecord& record = drive.frames[index];
   AnchorResult result;
@@ -280,33 +312,66 @@ AnchorResult AnchorOne(const Drive& drive,
       Rigid3d::FromMatrix(MapFromCamRotation(heading), result.prior.position_in_map);
   result.seed_scale_m_per_unit = seed.scale;
 
-  // The structure: points of the segment seen inside a window, near its cameras.
+  // The structure: points of the segment seen inside a window, near its cameras; with each, its
+  // drift direction along the segment's path (ScaleDriftPath, pivot camera k), from the path's
+  // camera nearest the middle of the first and last keyframe that saw it.
+  std::vector<Eigen::Vector3d> path_centres;
+  std::vector<frame_t> path_frames;
+  size_t path_pivot = 0;
+  for (size_t j = 0; j < vo.poses.size(); ++j) {
+    if (vo.poses[j].frame == kInvalidFrame || vo.SegmentOf(vo.poses[j].frame) != segment) continue;
+    if (static_cast<int>(j) == k) path_pivot = path_centres.size();
+    path_centres.push_back(vo.poses[j].world_from_cam.translation);
+    path_frames.push_back(vo.poses[j].frame);
+  }
+  const ScaleDriftPath path(path_centres, path_pivot);
+  const auto path_index = [&](double frame) {
+    const auto it = std::lower_bound(path_frames.begin(), path_frames.end(), frame,
+                                     [](frame_t f, double x) { return f < x; });
+    if (it == path_frames.end()) return path_frames.size() - 1;
+    const size_t i = static_cast<size_t>(it - path_frames.begin());
+    return i > 0 && frame - path_frames[i - 1] < path_frames[i] - frame ? i - 1 : i;
+  };
+  struct Selected {
+    std::vector<Eigen::Vector3d> points;
+    StructureDrift drift;
+  };
   const auto select_points = [&](const std::vector<int>& poses, double max_range_vo) {
     const frame_t frame_lo = vo.poses[poses.front()].frame;
     const frame_t frame_hi = vo.poses[poses.back()].frame;
-    std::vector<Eigen::Vector3d> selected;
+    Selected selected;
+    selected.drift.per_m = drift_per_m;
+    selected.drift.estimate = options.scale_drift == ScaleDriftModel::kPerWindow && !given;
     for (const VoPoint& p : vo.points) {
       if (p.segment != segment || p.observations < options.min_observations) continue;
       if (p.last_frame < frame_lo || p.first_frame > frame_hi) continue;
       for (const int j : poses) {
         if ((p.point_in_world - vo.poses[j].world_from_cam.translation).norm() <= max_range_vo) {
-          selected.push_back(p.point_in_world);
+          selected.points.push_back(p.point_in_world);
+          const double middle = 0.5 * (static_cast<double>(p.first_frame) + p.last_frame);
+          selected.drift.directions.push_back(path.Direction(p.point_in_world, path_index(middle)));
           break;
         }
       }
     }
-    if (static_cast<int>(selected.size()) > options.max_points) {
-      std::vector<Eigen::Vector3d> kept;
-      const double step = static_cast<double>(selected.size()) / options.max_points;
+    if (static_cast<int>(selected.points.size()) > options.max_points) {
+      Selected kept;
+      kept.drift.per_m = selected.drift.per_m;
+      kept.drift.estimate = selected.drift.estimate;
+      const double step = static_cast<double>(selected.points.size()) / options.max_points;
       for (int i = 0; i < options.max_points; ++i) {
-        kept.push_back(selected[static_cast<size_t>(i * step)]);
+        const size_t at = static_cast<size_t>(i * step);
+        kept.points.push_back(selected.points[at]);
+        kept.drift.directions.push_back(selected.drift.directions[at]);
       }
-      selected.swap(kept);
+      selected = std::move(kept);
     }
     return selected;
   };
-  const std::vector<Eigen::Vector3d> points =
-      select_points(window, options.max_point_range_m / seed.scale);
+  const Selected structure = select_points(window, options.max_point_range_m / seed.scale);
+  const std::vector<Eigen::Vector3d>& points = structure.points;
+  const bool with_drift = options.scale_drift != ScaleDriftModel::kNone;
+  const StructureDrift* drift = with_drift ? &structure.drift : nullptr;
   result.structure_points = static_cast<int>(points.size());
   if (static_cast<int>(points.size()) < options.registration.min_points) {
     result.status = AnchorStatus::kLost;
@@ -340,11 +405,14 @@ AnchorResult AnchorOne(const Drive& drive,
   std::vector<Eigen::Vector2d> offsets = {Eigen::Vector2d::Zero()};
   offsets.insert(offsets.end(), options.seed_offsets_m.begin(), options.seed_offsets_m.end());
   if (given) {
-    // A neighbour's similarity (the consensus pass): the fine levels from it, no search.
+    // From a given similarity, no search.
     StructureRegistrationOptions fine = options.registration;
     fine.search_step_m = 0.0;
-    fine.max_distances_m = options.refine_distances_m;
-    best = RegisterStructure(points, structure_map, *given, along, fine);
+    fine.max_distances_m = restart->levels_m;
+    // Under a drift the structure changes shape: the start is the similarity that takes the
+    // warped points where `given` takes the points (least squares).
+    best = RegisterStructure(points, structure_map,
+                             drift ? Rewarped(points, *drift, *given) : *given, along, fine, drift);
     have = true;
     offsets.clear();
   }
@@ -352,7 +420,7 @@ AnchorResult AnchorOne(const Drive& drive,
     Similarity3 start_sim = seed;
     start_sim.translation += o.x() * along + o.y() * right;
     const StructureRegistration fit =
-        RegisterStructure(points, structure_map, start_sim, along, options.registration);
+        RegisterStructure(points, structure_map, start_sim, along, options.registration, drift);
     if (!have || Better(fit, best)) {
       best = fit;
       have = true;
@@ -368,13 +436,15 @@ AnchorResult AnchorOne(const Drive& drive,
         near.push_back(j);
       }
     }
-    const std::vector<Eigen::Vector3d> refine_points =
+    const Selected refine_structure =
         select_points(near, options.max_point_range_m / best.map_from_world.scale);
+    const std::vector<Eigen::Vector3d>& refine_points = refine_structure.points;
     StructureRegistrationOptions refine = options.registration;
     refine.search_step_m = 0.0;
     refine.max_distances_m = options.refine_distances_m;
     const StructureRegistration refined =
-        RegisterStructure(refine_points, structure_map, best.map_from_world, along, refine);
+        RegisterStructure(refine_points, structure_map, best.map_from_world, along, refine,
+                          with_drift ? &refine_structure.drift : nullptr);
     if (refined.success) {
       best = refined;
       result.structure_points = static_cast<int>(refine_points.size());
@@ -382,15 +452,17 @@ AnchorResult AnchorOne(const Drive& drive,
   }
   spdlog::debug(
       "structure anchor frame {}: {} points, seed search moved {:.2f} {:.2f} m, turned {:.1f} "
-      "deg; {} iterations, share {:.2f}, residual {:.3f} m, scale {:.4f} (seed {:.4f})",
+      "deg; {} iterations, share {:.2f}, residual {:.3f} m, scale {:.4f} (seed {:.4f}), drift "
+      "{:.2f} % per 10 m",
       record.frame, points.size(), best.search_offset_m.x(), best.search_offset_m.y(),
       best.search_yaw_deg, best.iterations, best.inlier_share, best.rms_m,
-      best.map_from_world.scale, seed.scale);
+      best.map_from_world.scale, seed.scale, 1000.0 * best.scale_drift_per_m);
   result.num_inliers = best.num_inliers;
   result.inlier_share = best.inlier_share;
   result.residual_m = best.rms_m;
   result.along_information = best.along_information;
   result.along_sigma_m = best.along_sigma_m;
+  result.scale_drift_per_m = best.scale_drift_per_m;
   result.rounds = best.iterations;
   result.rmse_px = NAN;
   if (!best.success) {
@@ -526,7 +598,7 @@ void ApplyConsensus(const Drive& drive,
   }
   const std::vector<PlacedAnchor> placed = Place(posed, vo, *out);
   const double radius = options.consensus_radius_m;
-  std::vector<std::pair<size_t, Similarity3>> redo;
+  std::vector<std::pair<size_t, Restart>> redo;
   for (size_t i = 0; i < placed.size(); ++i) {
     const std::optional<Placements> p = PlaceByNeighbours(placed, i, true, options.window_m);
     if (!p) continue;
@@ -544,11 +616,15 @@ void ApplyConsensus(const Drive& drive,
     }
     if (agreeing < 3 || 2 * agreeing <= static_cast<int>(p->each.size())) continue;
     if ((placed[i].map_centre.head<2>() - p->median).norm() <= radius || nearest == i) continue;
-    redo.push_back({posed[i].k, placed[nearest].map_from_world});
+    const double drift = out->frames[posed[i].k].scale_drift_per_m;
+    redo.push_back({posed[i].k,
+                    {placed[nearest].map_from_world, std::isfinite(drift) ? drift : 0.0,
+                     options.refine_distances_m}});
   }
   ParallelFor(static_cast<int64_t>(redo.size()), options.num_threads, [&](int64_t r) {
-    const auto& [k, sim] = redo[static_cast<size_t>(r)];
-    AnchorResult again = AnchorOne(drive, indices[k], pose_of, vo, load, map_frame, options, &sim);
+    const auto& [k, restart] = redo[static_cast<size_t>(r)];
+    AnchorResult again =
+        AnchorOne(drive, indices[k], pose_of, vo, load, map_frame, options, &restart);
     if (!again.has_pose) return;
     again.seconds += out->frames[k].seconds;
     const std::string note = "re-registered from the consensus of its neighbours";
@@ -574,6 +650,95 @@ void ApplyConsensus(const Drive& drive,
         "its neighbours place it {:.2f} m away, beyond its 2 sigma {:.2f} m", *off[i], claim_m);
     a.message = a.message.empty() ? note : a.message + "; " + note;
   }
+}
+
+// The VO's scale drift at each posed anchor (ScaleDriftModel::kAcrossAnchors): the slope of the
+// log of the anchors' scales (metres per VO unit) over their distance along the VO path (metres,
+// at the anchor's scale), by least squares over the anchors of its segment within half the
+// window; 0 (none known) with fewer than three of them or spread over less than a quarter of
+// the window. A window's scale is the drifting scale averaged over its structure: the average
+// moves with the drift (the slope is the drift's), and no window's fit can trade a drift for a
+// move along the road (as the per-window estimate does on a street of facades).
+std::vector<double> DriftAcrossAnchors(const std::vector<Posed>& posed,
+                                       const VoStructure& vo,
+                                       const AnchorDriveResult& out,
+                                       const StructureAnchorOptions& options) {
+  std::vector<double> arc(vo.poses.size(), 0.0);
+  for (size_t j = 1; j < vo.poses.size(); ++j) {
+    arc[j] = arc[j - 1] +
+             (vo.poses[j].world_from_cam.translation - vo.poses[j - 1].world_from_cam.translation)
+                 .norm();
+  }
+  std::vector<double> drift(posed.size(), 0.0);
+  const double limit = options.registration.max_scale_drift_per_m;
+  for (size_t i = 0; i < posed.size(); ++i) {
+    const AnchorResult& a = out.frames[posed[i].k];
+    const int segment = vo.SegmentOf(a.frame);
+    std::vector<Eigen::Vector2d> xy;  // (metres along the path from anchor i, log scale)
+    for (const Posed& p : posed) {
+      const AnchorResult& b = out.frames[p.k];
+      if (vo.SegmentOf(b.frame) != segment || !(b.scale_m_per_unit > 0.0)) continue;
+      const double x =
+          (arc[static_cast<size_t>(p.pose)] - arc[static_cast<size_t>(posed[i].pose)]) *
+          a.scale_m_per_unit;
+      if (std::abs(x) <= 0.5 * options.window_m) xy.push_back({x, std::log(b.scale_m_per_unit)});
+    }
+    if (xy.size() < 3) continue;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    double lo = INFINITY, hi = -INFINITY;
+    for (const Eigen::Vector2d& v : xy) {
+      mean += v;
+      lo = std::min(lo, v.x());
+      hi = std::max(hi, v.x());
+    }
+    mean /= static_cast<double>(xy.size());
+    if (hi - lo < 0.25 * options.window_m) continue;
+    double sxx = 0.0, sxy = 0.0;
+    for (const Eigen::Vector2d& v : xy) {
+      sxx += (v.x() - mean.x()) * (v.x() - mean.x());
+      sxy += (v.x() - mean.x()) * (v.y() - mean.y());
+    }
+    drift[i] = std::clamp(sxy / sxx, -limit, limit);
+  }
+  return drift;
+}
+
+// Each posed anchor registered again from its own fit, over the schedule's levels that free the
+// scale, with the drift its neighbours' scales give (DriftAcrossAnchors).
+void ApplyDriftAcrossAnchors(const Drive& drive,
+                             const std::vector<size_t>& indices,
+                             const std::vector<int>& pose_of,
+                             const VoStructure& vo,
+                             const std::function<PointCloud(const Eigen::Vector3d&, double)>& load,
+                             const EnuFrame& map_frame,
+                             const StructureAnchorOptions& options,
+                             AnchorDriveResult* out) {
+  std::vector<Posed> posed;
+  for (size_t k = 0; k < out->frames.size(); ++k) {
+    const int pose = pose_of[indices[k]];
+    if (out->frames[k].has_pose && pose >= 0) posed.push_back({k, pose});
+  }
+  const std::vector<double> drift = DriftAcrossAnchors(posed, vo, *out, options);
+  // The schedule's levels that free the scale: the drift changes the scale at the camera.
+  std::vector<double> levels;
+  for (const double d : options.registration.max_distances_m) {
+    if (d <= options.registration.min_scale_distance_m) levels.push_back(d);
+  }
+  if (levels.empty()) levels.push_back(options.registration.max_distances_m.back());
+  ParallelFor(static_cast<int64_t>(posed.size()), options.num_threads, [&](int64_t r) {
+    const size_t i = static_cast<size_t>(r);
+    const size_t k = posed[i].k;
+    Restart restart;
+    restart.sim = ImpliedSimilarity(out->frames[k],
+                                    vo.poses[static_cast<size_t>(posed[i].pose)].world_from_cam);
+    restart.drift_per_m = drift[i];
+    restart.levels_m = levels;
+    AnchorResult again =
+        AnchorOne(drive, indices[k], pose_of, vo, load, map_frame, options, &restart);
+    if (!again.has_pose) return;
+    again.seconds += out->frames[k].seconds;
+    out->frames[k] = again;
+  });
 }
 
 }  // namespace
@@ -673,6 +838,9 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
     ++done;
     if (progress) progress(done, static_cast<int64_t>(indices.size()));
   });
+  if (options.scale_drift == ScaleDriftModel::kAcrossAnchors) {
+    ApplyDriftAcrossAnchors(drive, indices, pose_of, timed, load, map_frame, options, &out);
+  }
   if (options.consensus_radius_m > 0.0) {
     ApplyConsensus(drive, indices, pose_of, timed, load, map_frame, options, &out);
   }

@@ -29,58 +29,83 @@ double RobustWeight(double residual, double scale, RobustLoss loss) {
   return u * u;
 }
 
-// One paired point: its transformed position, the map point, the projector of the distance.
+// One paired point: its transformed position, the map point, the projector of the distance, and
+// the derivative of the transformed position by the drift kappa (map frame).
 struct Pair {
   Eigen::Vector3d y;
   Eigen::Vector3d q;
   Eigen::Matrix3d p;
+  Eigen::Vector3d k;
 };
 
-std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& points,
+// The structure as registered: points, their drift directions (ScaleDriftPath; null: no
+// drift) and the current drift.
+struct Warped {
+  const std::vector<Eigen::Vector3d>& points;
+  const std::vector<Eigen::Vector3d>* directions = nullptr;
+  double kappa = 0.0;
+
+  Eigen::Vector3d Point(size_t i) const {
+    return directions ? Eigen::Vector3d(points[i] + kappa * (*directions)[i]) : points[i];
+  }
+};
+
+std::vector<Pair> FindPairs(const Warped& structure,
                             const Similarity3& sim,
                             StructureMap& map,
                             double max_distance_m) {
-  std::vector<Eigen::Vector3d> transformed(points.size());
-  for (size_t i = 0; i < points.size(); ++i) transformed[i] = sim * points[i];
+  const size_t n = structure.points.size();
+  std::vector<Eigen::Vector3d> transformed(n);
+  for (size_t i = 0; i < n; ++i) transformed[i] = sim * structure.Point(i);
   const std::vector<int> nearest = map.Nearest(transformed, max_distance_m);
   std::vector<Pair> pairs;
-  pairs.reserve(points.size());
-  for (size_t i = 0; i < points.size(); ++i) {
+  pairs.reserve(n);
+  for (size_t i = 0; i < n; ++i) {
     if (nearest[i] < 0) continue;
+    const Eigen::Vector3d k =
+        structure.directions
+            ? Eigen::Vector3d(sim.scale * (sim.rotation * (*structure.directions)[i]))
+            : Eigen::Vector3d::Zero();
     pairs.push_back({transformed[i], map.Point(nearest[i]).cast<double>(),
-                     map.Projector(nearest[i]).cast<double>()});
+                     map.Projector(nearest[i]).cast<double>(), k});
   }
   return pairs;
 }
 
 double PairResidual(const Pair& pair) { return (pair.p * (pair.y - pair.q)).norm(); }
 
-// Gauss-Newton normal equations in (omega, delta, sigma) about `centre`: y' = exp(sigma) *
-// Exp(omega) * (y - centre) + centre + delta. Without `with_scale`, sigma is held at 0.
+using Matrix8d = Eigen::Matrix<double, 8, 8>;
+using Vector8d = Eigen::Matrix<double, 8, 1>;
+
+// Gauss-Newton normal equations in (omega, delta, sigma, kappa) about `centre`: y' = exp(sigma) *
+// Exp(omega) * (y + k dkappa - centre) + centre + delta. Without `with_scale`, sigma is held at
+// 0; without `with_drift`, kappa.
 void Accumulate(const std::vector<Pair>& pairs,
                 const Eigen::Vector3d& centre,
                 double loss_scale,
                 RobustLoss loss,
                 bool with_scale,
-                Eigen::Matrix<double, 7, 7>* h,
-                Eigen::Matrix<double, 7, 1>* g) {
+                bool with_drift,
+                Matrix8d* h,
+                Vector8d* g) {
   h->setZero();
   g->setZero();
   for (const Pair& pair : pairs) {
     const Eigen::Vector3d d = pair.y - centre;
     const Eigen::Vector3d r = pair.p * (pair.y - pair.q);
-    Eigen::Matrix<double, 3, 7> j;
-    j << -Skew(d), Eigen::Matrix3d::Identity(), d;
+    Eigen::Matrix<double, 3, 8> j;
+    j << -Skew(d), Eigen::Matrix3d::Identity(), d, pair.k;
     const double w = RobustWeight(r.norm(), loss_scale, loss);
     // P is a symmetric projector: J^T P^T P J = J^T P J.
     *h += w * j.transpose() * pair.p * j;
     *g += w * j.transpose() * r;
   }
-  if (!with_scale) {
-    h->row(6).setZero();
-    h->col(6).setZero();
-    (*h)(6, 6) = 1.0;
-    (*g)(6) = 0.0;
+  for (const int held : {with_scale ? -1 : 6, with_drift ? -1 : 7}) {
+    if (held < 0) continue;
+    h->row(held).setZero();
+    h->col(held).setZero();
+    (*h)(held, held) = 1.0;
+    (*g)(held) = 0.0;
   }
 }
 
@@ -150,6 +175,40 @@ Similarity3 SearchSeed(const std::vector<Eigen::Vector3d>& points,
 
 }  // namespace
 
+ScaleDriftPath::ScaleDriftPath(std::vector<Eigen::Vector3d> centres, size_t pivot)
+    : centres_(std::move(centres)) {
+  EPILOC_CHECK(pivot < centres_.size(), "scale drift path: pivot {} of {} cameras", pivot,
+               centres_.size());
+  const size_t n = centres_.size();
+  arc_.assign(n, 0.0);
+  integral_.assign(n, Eigen::Vector3d::Zero());
+  // Each step of the path a straight piece: its share of the integral of x t dx is its
+  // displacement (from the pivot's side) times the arc length at its middle (negative behind
+  // the pivot, where the displacement points backwards too).
+  for (size_t k = pivot + 1; k < n; ++k) {
+    const Eigen::Vector3d step = centres_[k] - centres_[k - 1];
+    arc_[k] = arc_[k - 1] + step.norm();
+    integral_[k] = integral_[k - 1] + 0.5 * (arc_[k - 1] + arc_[k]) * step;
+  }
+  for (size_t k = pivot; k-- > 0;) {
+    const Eigen::Vector3d step = centres_[k] - centres_[k + 1];
+    arc_[k] = arc_[k + 1] - step.norm();
+    integral_[k] = integral_[k + 1] + 0.5 * (arc_[k + 1] + arc_[k]) * step;
+  }
+}
+
+Eigen::Vector3d ScaleDriftPath::Direction(const Eigen::Vector3d& point, size_t reference) const {
+  EPILOC_CHECK(reference < centres_.size(), "scale drift path: camera {} of {}", reference,
+               centres_.size());
+  return arc_[reference] * (point - centres_[reference]) + integral_[reference];
+}
+
+Eigen::Vector3d ScaleDriftPath::Camera(size_t index, double kappa) const {
+  EPILOC_CHECK(index < centres_.size(), "scale drift path: camera {} of {}", index,
+               centres_.size());
+  return centres_[index] + kappa * integral_[index];
+}
+
 Similarity3 Similarity3::Inverse() const {
   Similarity3 inverse;
   inverse.scale = 1.0 / scale;
@@ -184,6 +243,8 @@ void StructureRegistrationOptions::Check() const {
                "structure registration: invalid seed search ranges");
   EPILOC_CHECK(min_scale_distance_m > 0.0,
                "structure registration: min_scale_distance_m must be > 0");
+  EPILOC_CHECK(max_scale_drift_per_m >= 0.0,
+               "structure registration: max_scale_drift_per_m must be >= 0");
   EPILOC_CHECK(min_inlier_share >= 0.0 && min_inlier_share <= 1.0,
                "structure registration: min_inlier_share must be in [0, 1]");
   EPILOC_CHECK(min_points >= 7, "structure registration: min_points must be >= 7");
@@ -333,7 +394,8 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
                                         StructureMap& map,
                                         const Similarity3& initial,
                                         const Eigen::Vector3d& direction,
-                                        const StructureRegistrationOptions& options) {
+                                        const StructureRegistrationOptions& options,
+                                        const StructureDrift* drift) {
   options.Check();
   StructureRegistration result;
   result.map_from_world = initial;
@@ -345,6 +407,16 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
     result.message = fmt::format("{} structure points, need {}", points.size(), options.min_points);
     return result;
   }
+  if (drift) {
+    EPILOC_CHECK(drift->directions.size() == points.size(),
+                 "structure registration: {} drift directions for {} points",
+                 drift->directions.size(), points.size());
+    EPILOC_CHECK(std::isfinite(drift->per_m), "structure registration: the drift is not finite");
+  }
+  const bool with_drift = drift && drift->estimate && options.max_scale_drift_per_m > 0.0;
+  // kappa is per world unit: per metre times metres per unit.
+  Warped structure{points, drift ? &drift->directions : nullptr,
+                   drift ? drift->per_m * initial.scale : 0.0};
   Similarity3 sim = initial;
   if (options.search_step_m > 0.0) {
     sim = SearchSeed(points, map, initial, direction, options, &result.search_offset_m,
@@ -354,22 +426,22 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
   for (const double max_distance : options.max_distances_m) {
     const double loss_scale = options.loss_scale_ratio * max_distance;
     for (int it = 0; it < options.max_iterations_per_level; ++it) {
-      const std::vector<Pair> pairs = FindPairs(points, sim, map, max_distance);
+      const std::vector<Pair> pairs = FindPairs(structure, sim, map, max_distance);
       if (static_cast<int>(pairs.size()) < options.min_points) {
         result.message =
             fmt::format("{} points within {} m of the map", pairs.size(), max_distance);
         return result;
       }
       const Eigen::Vector3d centre = Centroid(pairs);
-      Eigen::Matrix<double, 7, 7> h;
-      Eigen::Matrix<double, 7, 1> g;
+      Matrix8d h;
+      Vector8d g;
       const RobustLoss loss =
           max_distance <= options.tukey_max_distance_m ? RobustLoss::kTukey : RobustLoss::kHuber;
-      Accumulate(pairs, centre, loss_scale, loss, max_distance <= options.min_scale_distance_m, &h,
-                 &g);
+      const bool free_scale = max_distance <= options.min_scale_distance_m;
+      Accumulate(pairs, centre, loss_scale, loss, free_scale, free_scale && with_drift, &h, &g);
       // A little damping keeps directions the structure does not constrain where they are.
-      h.diagonal() += 1e-6 * (h.diagonal().maxCoeff() + 1.0) * Eigen::Matrix<double, 7, 1>::Ones();
-      const Eigen::Matrix<double, 7, 1> step = h.ldlt().solve(-g);
+      h.diagonal() += 1e-6 * (h.diagonal().maxCoeff() + 1.0) * Vector8d::Ones();
+      const Vector8d step = h.ldlt().solve(-g);
       if (!step.allFinite()) {
         result.message = "singular registration problem";
         return result;
@@ -387,13 +459,27 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
       sim.scale *= ds;
       sim.rotation = (dr * sim.rotation).normalized();
       sim.translation = ds * (dr * (sim.translation - centre)) + centre + delta;
+      // The drift within its bound (per metre of road: kappa per world unit over the scale).
+      const double old_kappa = structure.kappa;
+      const double max_kappa = options.max_scale_drift_per_m * sim.scale;
+      structure.kappa = std::clamp(structure.kappa + step[7], -max_kappa, max_kappa);
+      double moved_by_drift = 0.0;
+      for (const Pair& p : pairs) {
+        moved_by_drift =
+            std::max(moved_by_drift, std::abs(structure.kappa - old_kappa) * p.k.norm());
+      }
       ++result.iterations;
-      if (delta.norm() + (angle + std::abs(sigma)) * radius < options.converged_m) break;
+      if (delta.norm() + (angle + std::abs(sigma)) * radius + moved_by_drift <
+          options.converged_m) {
+        break;
+      }
     }
   }
   result.map_from_world = sim;
+  result.drift = structure.kappa;
+  result.scale_drift_per_m = structure.kappa / sim.scale;
   const double finest = options.max_distances_m.back();
-  const std::vector<Pair> pairs = FindPairs(points, sim, map, finest);
+  const std::vector<Pair> pairs = FindPairs(structure, sim, map, finest);
   result.num_inliers = static_cast<int>(pairs.size());
   result.inlier_share = static_cast<double>(pairs.size()) / points.size();
   if (result.num_inliers < options.min_points) {
@@ -404,16 +490,16 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
   for (const Pair& p : pairs) sum2 += PairResidual(p) * PairResidual(p);
   result.rms_m = std::sqrt(sum2 / pairs.size());
   // Conditioning: the unweighted Hessian of the final pairs.
-  Eigen::Matrix<double, 7, 7> h;
-  Eigen::Matrix<double, 7, 1> g;
-  Accumulate(pairs, Centroid(pairs), 1e30, RobustLoss::kHuber, true, &h, &g);
+  Matrix8d h;
+  Vector8d g;
+  Accumulate(pairs, Centroid(pairs), 1e30, RobustLoss::kHuber, true, with_drift, &h, &g);
   const Eigen::Vector3d u = direction.normalized();
   const Eigen::Matrix3d htt = h.block<3, 3>(3, 3);
   result.along_information = u.dot(htt * u) / pairs.size();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(htt);
   result.condition =
       eigen.eigenvalues()[0] > 0.0 ? eigen.eigenvalues()[2] / eigen.eigenvalues()[0] : INFINITY;
-  const Eigen::Matrix<double, 7, 7> covariance =
+  const Matrix8d covariance =
       h.fullPivLu().inverse() * std::max(result.rms_m * result.rms_m, 1e-12);
   result.along_sigma_m = std::sqrt(std::max(0.0, u.dot(covariance.block<3, 3>(3, 3) * u)));
   // The Hessian sees only the final pairs: moved along the road, a structure of facades finds
@@ -427,14 +513,15 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
     Similarity3 moved = sim;
     moved.translation += move_m * u;
     int count = 0;
-    for (const Pair& p : FindPairs(points, moved, map, finest)) {
+    for (const Pair& p : FindPairs(structure, moved, map, finest)) {
       count += PairResidual(p) <= surface_m ? 1 : 0;
     }
     return count;
   };
-  const double reach_m = options.search_step_m > 0.0 && options.search_along_m > 0.0
-                             ? options.search_along_m
-                             : options.max_distances_m.front();
+  // The search's reach also when the search is off (a registration from a given start, e.g. a
+  // neighbour's fit, is no better fixed along the road than one that searched).
+  const double reach_m =
+      options.search_along_m > 0.0 ? options.search_along_m : options.max_distances_m.front();
   result.along_points_on_surface = on_surface(0.0);
   const double tie =
       2.0 * std::sqrt(static_cast<double>(std::max(result.along_points_on_surface, 1)));

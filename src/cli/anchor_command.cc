@@ -88,6 +88,7 @@ ResultTable ToResultTable(const AnchorDriveResult& anchors,
                          "along_info",
                          "along_sigma_m",
                          "structure_points",
+                         "scale_drift_per_m",
                          "message"};
   for (const AnchorResult& a : anchors.frames) {
     ResultRow row;
@@ -120,6 +121,7 @@ ResultTable ToResultTable(const AnchorDriveResult& anchors,
                  Fixed(a.along_information, 4),
                  Fixed(a.along_sigma_m, 4),
                  std::to_string(a.structure_points),
+                 Fixed(a.scale_drift_per_m, 6),
                  a.message};
     table.rows.push_back(std::move(row));
   }
@@ -142,7 +144,7 @@ int RunAnchor(int argc, char** argv) {
   AnchorInputs inputs;
   AnchorOptions options;
   std::string frames_text, out_path, origin_text, db_path, matcher = "akaze", shading = "auto";
-  std::string method = "auto", vo_points_path, structure_source = "vo";
+  std::string method = "auto", vo_points_path, structure_source = "vo", scale_drift = "anchors";
   StructureAnchorOptions structure;
   app.add_option("--cloud", inputs.cloud_path, "Map: point-cloud file or tile directory")
       ->required();
@@ -229,6 +231,14 @@ int RunAnchor(int argc, char** argv) {
                  "structure: anchors farther than this from their neighbours' agreed placement "
                  "are registered again from it, metres (0: off)")
       ->capture_default_str();
+  app.add_option("--scale-drift", scale_drift,
+                 "structure: the VO's scale drift along a window: anchors (from the scales of "
+                 "the anchors around, then each registered again with it), window (estimated in "
+                 "each window's fit) or none")
+      ->capture_default_str();
+  app.add_option("--max-scale-drift", structure.registration.max_scale_drift_per_m,
+                 "structure: the scale drift at most, relative change of scale per metre of road")
+      ->capture_default_str();
   app.add_option("--window", structure.window_m,
                  "structure: road length of the keyframe window, metres")
       ->capture_default_str();
@@ -255,6 +265,15 @@ int RunAnchor(int argc, char** argv) {
     method = !inputs.photos_dir.empty() ? "photos"
              : !inputs.vo_path.empty()  ? "structure"
                                         : "render";
+  }
+  if (scale_drift == "none") {
+    structure.scale_drift = ScaleDriftModel::kNone;
+  } else if (scale_drift == "anchors") {
+    structure.scale_drift = ScaleDriftModel::kAcrossAnchors;
+  } else if (scale_drift == "window") {
+    structure.scale_drift = ScaleDriftModel::kPerWindow;
+  } else {
+    Throw("--scale-drift: unknown model '{}' (anchors, window, none)", scale_drift);
   }
   if (structure_source != "sift" && structure_source != "vo") {
     Throw("--structure: unknown structure '{}' (sift, vo)", structure_source);

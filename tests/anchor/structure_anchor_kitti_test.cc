@@ -55,50 +55,68 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   inputs.every = 15;  // 7 anchors keep the test short; README: the whole drive, every 10th
   StructureAnchorOptions options;
   options.heading_error_deg = 5.0;
-  const AnchorDriveResult result = AnchorDriveByStructure(inputs, vo, options);
   const EnuFrame enu(inputs.map_origin);
   // Errors of every anchor with a pose, ok or rejected (the along-track profile rejects them
   // all as weak along the road, README).
-  std::vector<double> horizontal, rotation;
-  double seconds = 0.0;
-  int ok = 0;
-  for (const AnchorResult& a : result.frames) {
-    seconds += a.seconds;
-    ok += a.status == AnchorStatus::kOk ? 1 : 0;
-    if (a.status != AnchorStatus::kOk) {
-      std::printf("frame %3lld: %s %s\n", static_cast<long long>(a.frame),
-                  AnchorStatusName(a.status).c_str(), a.message.c_str());
+  struct Figures {
+    std::vector<double> horizontal, rotation;
+    int ok = 0;
+    double seconds = 0.0;
+    size_t anchors = 0;
+  };
+  const auto run = [&](const StructureAnchorOptions& o, const char* label) {
+    const AnchorDriveResult result = AnchorDriveByStructure(inputs, vo, o);
+    Figures f;
+    f.anchors = result.frames.size();
+    for (const AnchorResult& a : result.frames) {
+      f.seconds += a.seconds / static_cast<double>(result.frames.size());
+      f.ok += a.status == AnchorStatus::kOk ? 1 : 0;
+      if (!a.has_pose) {
+        std::printf("%s frame %3lld: %s %s\n", label, static_cast<long long>(a.frame),
+                    AnchorStatusName(a.status).c_str(), a.message.c_str());
+        continue;
+      }
+      const auto truth = TrueMapFromCam(drive, a.timestamp_s, enu);
+      EXPECT_TRUE(truth.has_value());
+      if (!truth) continue;
+      f.horizontal.push_back((a.map_from_cam.translation - truth->translation).head<2>().norm());
+      f.rotation.push_back(RotationDifferenceDeg(a.map_from_cam.rotation, truth->rotation));
+      std::printf(
+          "%s frame %3lld: %s %.3f m, %.2f deg, share %.2f, residual %.3f m, scale %.4f, drift "
+          "%.2f %% per 10 m, along sigma %.3f m\n",
+          label, static_cast<long long>(a.frame), AnchorStatusName(a.status).c_str(),
+          f.horizontal.back(), f.rotation.back(), a.inlier_share, a.residual_m, a.scale_m_per_unit,
+          1000.0 * a.scale_drift_per_m, a.along_sigma_m);
     }
-    if (!a.has_pose) continue;
-    const auto truth = TrueMapFromCam(drive, a.timestamp_s, enu);
-    ASSERT_TRUE(truth.has_value());
-    horizontal.push_back((a.map_from_cam.translation - truth->translation).head<2>().norm());
-    rotation.push_back(RotationDifferenceDeg(a.map_from_cam.rotation, truth->rotation));
     std::printf(
-        "frame %3lld: %.3f m, %.2f deg, share %.2f, residual %.3f m, scale %.4f, along sigma "
-        "%.3f m\n",
-        static_cast<long long>(a.frame), horizontal.back(), rotation.back(), a.inlier_share,
-        a.residual_m, a.scale_m_per_unit, a.along_sigma_m);
-  }
-  const double max_h = *std::max_element(horizontal.begin(), horizontal.end());
-  const double max_r = *std::max_element(rotation.begin(), rotation.end());
-  std::printf(
-      "KITTI structure anchors: %d of %zu ok, %zu posed: horizontal median %.3f max %.3f m, "
-      "rotation median %.2f max %.2f deg, %.2f s per anchor\n",
-      ok, result.frames.size(), horizontal.size(), Median(horizontal), max_h, Median(rotation),
-      max_r, seconds / result.frames.size());
+        "KITTI structure anchors (%s): %d of %zu ok, %zu posed: horizontal median %.3f max %.3f "
+        "m, rotation median %.2f max %.2f deg, %.2f s per anchor\n",
+        label, f.ok, f.anchors, f.horizontal.size(), Median(f.horizontal),
+        f.horizontal.empty() ? NAN : *std::max_element(f.horizontal.begin(), f.horizontal.end()),
+        Median(f.rotation),
+        f.rotation.empty() ? NAN : *std::max_element(f.rotation.begin(), f.rotation.end()),
+        f.seconds);
+    return f;
+  };
+  const Figures with_drift = run(options, "drift across anchors");
+  StructureAnchorOptions no_drift_options = options;
+  no_drift_options.scale_drift = ScaleDriftModel::kNone;
+  const Figures no_drift = run(no_drift_options, "no drift model");
   // Targets (issue 17): >= 90 % ok, median <= 0.2 m, max <= 0.5 m, rotation <= 0.5 deg, <= 2 s.
-  // Reached (frames 0-99, every 15th), over the 7 posed anchors: median 1.06 m, max 1.78 m,
-  // rotation median 2.4 deg, max 5.4 deg; 3 s per anchor on a loaded machine. None of the
-  // accuracy targets is met. Before the along-track profile, 6 of 7 were ok (frame 0 rejected);
-  // now 1 is (frame 45, 0.34 m off): for the others the profile leaves 0.15-1.05 m along the
-  // road undecided (the Hessian said a few cm). The figures asserted are those reached (with a
-  // margin), so that a regression fails: the structure is registered metres better than the GNSS
-  // prior (4-7 m off here).
-  EXPECT_GE(horizontal.size() * 4, result.frames.size() * 3);
-  EXPECT_LE(Median(horizontal), 1.5);
-  EXPECT_LE(max_h, 2.5);
-  EXPECT_LE(Median(rotation), 3.0);
+  // Reached (frames 0-99, every 15th), over the 7 posed anchors, with the drift model: median
+  // 0.60 m, max 0.79 m, rotation median 1.8 deg, max 2.4 deg; without it 0.82 / 0.90 m and
+  // 2.2 / 3.5 deg (this VO's scale falls by 0.2-0.4 % per metre, as the anchors estimate it). None
+  // of the accuracy targets is met, partly because this drive's OXTS track is 4 % short of its
+  // LiDAR (README); all anchors are rejected as weak along the road. The figures asserted are those
+  // reached (with a margin), so that a regression fails: the structure is registered metres better
+  // than the GNSS prior (4-7 m off here).
+  ASSERT_GE(with_drift.horizontal.size() * 4, with_drift.anchors * 3);
+  EXPECT_LE(Median(with_drift.horizontal), 0.9);
+  EXPECT_LE(*std::max_element(with_drift.horizontal.begin(), with_drift.horizontal.end()), 1.5);
+  EXPECT_LE(Median(with_drift.rotation), 2.4);
+  // The drift model places the camera better than one similarity per window.
+  EXPECT_LT(Median(with_drift.horizontal), Median(no_drift.horizontal));
+  EXPECT_LT(Median(with_drift.rotation), Median(no_drift.rotation));
 }
 
 }  // namespace

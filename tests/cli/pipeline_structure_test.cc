@@ -122,9 +122,9 @@ TEST(PipelineStructure, MapVoAnchorGeorefDatabaseLocalize) {
   size_t survey_frames = 0;
   const ChainFigures chain = SyntheticChain("structure", "--max-along-sigma 5", &survey_frames);
   // Targets: <= 0.05 m (anchors, synthetic street), not reached; the figures asserted are those
-  // reached with a margin: anchors 9 of 9 ok, max 2.26 m; piecewise max 2.26 m (it passes
-  // through the anchors); the survey drive localized along that route: online along-track mean
-  // 1.0 m (the route is as wrong as its anchors).
+  // reached with a margin: anchors 9 of 9 ok, max 1.31 m (2.26 m before the drift pass);
+  // piecewise max 1.31 m (it passes through the anchors); the survey drive localized along that
+  // route: online along-track mean 0.44 m (1.0 m; the route is as wrong as its anchors).
   EXPECT_GE(chain.ok * 10, static_cast<int>(chain.anchors) * 9);
   EXPECT_LE(chain.anchors_max, 3.0);
   EXPECT_LE(chain.piecewise_max, 3.0);
@@ -140,14 +140,15 @@ TEST(PipelineStructure, SiftStructureChainOnTheSyntheticStreet) {
   size_t survey_frames = 0;
   const ChainFigures chain =
       SyntheticChain("SIFT structure", "--structure sift --max-along-sigma 5", &survey_frames);
-  // Measured: anchors max 0.66 m (KLT points: 2.26 m), piecewise georef max 0.66 m (2.26), the
-  // survey drive on that route online along-track mean 0.15 m over 17 frames (0.99 m). Still
-  // short of the 0.05 m target; asserted with a margin.
+  // Measured: anchors max 0.34 m (KLT points: 1.31 m), piecewise georef max 0.34 m (1.31), the
+  // survey drive on that route online along-track mean 0.067 m over 17 frames (0.44 m); before
+  // the anchors' drift pass 0.66 m, 0.66 m and 0.15 m. Still short of the 0.05 m target;
+  // asserted with a margin.
   EXPECT_GE(chain.ok * 10, static_cast<int>(chain.anchors) * 9);
-  EXPECT_LE(chain.anchors_max, 1.0);
-  EXPECT_LE(chain.piecewise_max, 1.0);
+  EXPECT_LE(chain.anchors_max, 0.6);
+  EXPECT_LE(chain.piecewise_max, 0.6);
   EXPECT_GE(chain.online.evaluated() * 2, static_cast<int64_t>(survey_frames));
-  EXPECT_LE(chain.online.along_track.mean_abs, 0.3);
+  EXPECT_LE(chain.online.along_track.mean_abs, 0.15);
 }
 
 // The same chain on the shared KITTI drive, issue 17's development scenario: the map from camera
@@ -185,9 +186,11 @@ TEST(PipelineStructure, KittiMapVoAnchorGeorefDatabaseLocalize) {
   // --max-along-sigma 5, median 0.99 m, every anchor within 3.85 m (frame 130, 3.5 m along the
   // road, the direction structure does not fix; the GNSS prior is 4-7 m off); piecewise max
   // 3.84 m; camera 0 localized along that route: 153 of 154 frames, online along-track mean
-  // 0.78 m, max 5.3 m (the route is as wrong as its anchors). With the OXTS positions as
-  // recorded (map and truth; before import-kitti fused them with the velocity): 15 of 16 ok,
-  // median 0.87 m, max 1.94 m, piecewise 2.30 m, online mean 0.62 m, max 2.16 m.
+  // 0.78 m, max 5.3 m (the route is as wrong as its anchors); with the anchors' drift pass
+  // (2026-11-27): max 3.87 m (the same frame), piecewise 3.87 m, online mean 0.70 m, max 4.4 m.
+  // With the OXTS positions as recorded (map and truth; before import-kitti fused them with the
+  // velocity): 15 of 16 ok, median 0.87 m, max 1.94 m, piecewise 2.30 m, online mean 0.62 m,
+  // max 2.16 m.
   EXPECT_GE(chain.ok * 8, static_cast<int>(chain.anchors) * 7);
   EXPECT_LE(chain.anchors_max, 4.5);
   EXPECT_LE(chain.piecewise_max, 4.5);

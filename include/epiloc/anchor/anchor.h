@@ -148,6 +148,8 @@ struct AnchorResult {
                                           // half the stretch the along-track profile does not
                                           // tell apart (structure_registration.h), if larger
   int structure_points = 0;               // VO points registered
+  double scale_drift_per_m = NAN;         // the VO's scale drift estimated over the window:
+                                          // relative change of scale per metre of road
 };
 
 // Anchors one frame. `image`: the frame undistorted into `camera` (grey or BGR); `local_map`: the

@@ -23,14 +23,18 @@
 //     (along_information >= min_along_information, along_sigma_m <= max_along_sigma_m), within
 //     max_prior_sigmas * gnss_sigma_m of the GNSS, at camera height over the map's ground and
 //     nearly level; else `rejected` with the reason.
+//  5. Drift pass (ScaleDriftModel::kAcrossAnchors, default): the VO's scale drift at f from the
+//     scales of the anchors around it, then f registered again from its own fit with the
+//     structure warped by that drift (StructureDrift); then the consensus pass.
 // Frames: map = the cloud's local ENU (metres); VO world = the trajectory's frame (its units).
-// Accuracy (README): on the shared KITTI drive about 0.9 m and 1.4 degrees (median), metres better
-// than a consumer GNSS but far from the photographs' centimetres: the ICP's cost on a sparse map
+// Accuracy (README): on the shared KITTI drive about 0.65 m and 1.1 degrees (median, the drift
+// pass), metres better than a consumer GNSS but far from the photographs' centimetres: its OXTS
+// track is 4 % short of its LiDAR (README), and the ICP's cost on a sparse map
 // and a monocular structure has minima about a metre apart (even exact structure is not placed
 // better there: tools/bench_structure_bound.cc). On the synthetic street the VO's KLT points are
 // too noisy to be fixed along the road (their count on the map's surfaces is flat within
 // counting noise): along_sigma_m says so and the anchors are rejected; the drive's SIFT features
-// triangulated along the VO poses (structure_sift.h) are placed to 0.05 m (median) there.
+// triangulated along the VO poses (structure_sift.h) are placed to 0.035 m (median) there.
 #pragma once
 
 #include <optional>
@@ -48,9 +52,22 @@
 
 namespace epiloc {
 
+// How the VO's scale drift along a window is handled (StructureDrift: a linear change of scale
+// along the VO path about the anchored camera, each point placed from the path's camera in the
+// middle of its first and last keyframe; the frame's pose is the warp's fixed point).
+enum class ScaleDriftModel {
+  kNone,           // one similarity per window
+  kAcrossAnchors,  // the drift from the scales of the anchors around (within half the window),
+                   // then each anchor registered again with it from its own fit (no search, the
+                   // levels that free the scale)
+  kPerWindow,      // estimated in each window's registration with the similarity
+};
+
 struct StructureAnchorOptions {
   PriorOptions prior;                         // heading from the GNSS track, camera height
   StructureRegistrationOptions registration;  // the ICP
+  // The VO's scale drift (at most registration.max_scale_drift_per_m).
+  ScaleDriftModel scale_drift = ScaleDriftModel::kAcrossAnchors;
   double window_m = 40.0;                     // road length (GNSS) of the keyframe window, metres
   int min_observations = 3;                   // VO points seen by fewer keyframes are not used
   double max_point_range_m = 35.0;  // points farther from every window camera are not used

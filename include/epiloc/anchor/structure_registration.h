@@ -24,8 +24,13 @@
 // seed's, and the conditioning of the problem along a given direction (the road): the information
 // the inliers' normals carry along it, and the standard deviation of the translation along it from
 // the Gauss-Newton Hessian or, where larger, from the profile of points on the map's surface
-// over moves along it (a street of facades is not fixed along the road by its structure). Frames:
-// map = the cloud's frame (metres); world = the reconstruction's frame (its units).
+// over moves along it (a street of facades is not fixed along the road by its structure).
+// Monocular scale drift (optional, ScaleDriftPath): a VO's scale changes along its path (the
+// shared KITTI drive's by about 0.3 % per metre), so one similarity fits a window's structure at
+// its middle and tilts and shifts the camera at its end (exact structure with 5 % drift over 40 m,
+// camera 12 m behind its middle: 0.5 deg, 0.12 m). With a drift model the structure is first
+// warped, p -> p + kappa * a(p) (linear in kappa, below), and kappa is estimated with the scale.
+// Frames: map = the cloud's frame (metres); world = the reconstruction's frame (its units).
 #pragma once
 
 #include <memory>
@@ -74,6 +79,10 @@ struct StructureRegistrationOptions {
   double search_yaw_step_deg = 1.5;   // ... in steps of this
   int search_points = 400;            // ... scoring this many points (evenly subsampled)
   double search_truncation_m = 0.5;   // ... by the share of them in map cells of half this side
+  // Scale drift (StructureDrift::estimate): estimated at the levels that free the scale, at most
+  // this relative change of scale per metre of road (0.005: 20 % over a 40 m window, beyond any
+  // usable monocular VO).
+  double max_scale_drift_per_m = 0.005;
   double min_inlier_share = 0.0;      // registration fails below this share (checks: caller)
   int min_points = 20;                // fewer points: no registration
 
@@ -100,14 +109,50 @@ struct StructureRegistration {
   double along_sigma_m = 0.0;
   // The Hessian's sigma holds only while the pairs do: moved along the road, a street of facades
   // finds other pairs as good. So the fit is also moved along d in steps of the finest distance
-  // within the search's reach (search_along_m; without a search, the first correspondence
-  // distance), re-paired, and its points within the finest level's loss scale of the map's
-  // surface counted: along_ambiguity_m is the largest move whose count is within twice its
-  // Poisson deviation (2 sqrt(count)) of the fit's (the reach: nothing fixes it), and
+  // within the search's reach (search_along_m, also when the search is off; when it is 0, the
+  // first correspondence distance), re-paired, and its points within the finest level's loss scale
+  // of the map's surface counted: along_ambiguity_m is the largest move whose count is within twice
+  // its Poisson deviation (2 sqrt(count)) of the fit's (the reach: nothing fixes it), and
   // along_sigma_m is at least half of it (that interval taken as +-2 sigma).
   double along_ambiguity_m = 0.0;
   int along_points_on_surface = 0;  // the fit's count in that profile
   double condition = 0.0;           // largest / smallest eigenvalue of the translation block
+  // The scale drift estimated (ScaleDriftPath), relative change of scale per metre of road
+  // (positive: the structure's scale grows ahead); 0 without a drift model.
+  double scale_drift_per_m = 0.0;
+  double drift = 0.0;  // the warp's kappa (per world unit) the result's similarity applies to
+};
+
+// A linear scale drift of a monocular reconstruction along its camera path. The VO's scale is
+// taken to change linearly with the distance travelled, s(x) = s (1 + kappa x), x the arc length
+// along the path (world units) from the pivot camera (where the similarity's own scale holds:
+// the anchored camera). The camera at arc length x_k then lies at c_k + kappa I_k, I_k = the
+// integral of x t(x) dx from the pivot to it (t the unit tangent; x_k^2 / 2 t on a straight
+// path), and a point placed from cameras about c_k has its offset from them scaled by
+// (1 + kappa x_k): p -> p + kappa a(p), a(p) = x_k (p - c_k) + I_k. Linear in kappa; the pivot
+// and the orientation there do not move.
+class ScaleDriftPath {
+ public:
+  // `centres`: the path's camera centres in order (world frame); `pivot`: index of the pivot.
+  ScaleDriftPath(std::vector<Eigen::Vector3d> centres, size_t pivot);
+  // a(point) for a point placed from the path's camera `reference` (an index into centres).
+  Eigen::Vector3d Direction(const Eigen::Vector3d& point, size_t reference) const;
+  // The position of camera `index` under a drift kappa (c_k + kappa I_k).
+  Eigen::Vector3d Camera(size_t index, double kappa) const;
+  size_t size() const { return centres_.size(); }
+
+ private:
+  std::vector<Eigen::Vector3d> centres_;
+  std::vector<double> arc_;                // x_k
+  std::vector<Eigen::Vector3d> integral_;  // I_k
+};
+
+// The scale drift RegisterStructure applies to (or estimates for) its points.
+struct StructureDrift {
+  std::vector<Eigen::Vector3d> directions;  // a(p) of each point (ScaleDriftPath::Direction)
+  double per_m = 0.0;     // the drift, relative change of scale per metre (the start, estimating)
+  bool estimate = false;  // estimated at the levels that free the scale (within
+                          // +-StructureRegistrationOptions::max_scale_drift_per_m)
 };
 
 // The map with a kd-tree over its points and normals computed on demand. Not thread-safe (the
@@ -139,12 +184,15 @@ class StructureMap {
 };
 
 // Registers `points_in_world` to `map` from the seed `initial` (see the top of the file);
-// `direction` (unit, map frame; e.g. the road's) is where the conditioning is reported. Expected
-// failures (too few points or pairs) come back with success = false.
+// `direction` (unit, map frame; e.g. the road's) is where the conditioning is reported. With
+// `drift`, the points are warped by its drift (the result's similarity maps p + kappa a(p)), and
+// with drift->estimate the drift is estimated too. Expected failures (too few points or pairs)
+// come back with success = false.
 StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& points_in_world,
                                         StructureMap& map,
                                         const Similarity3& initial,
                                         const Eigen::Vector3d& direction,
-                                        const StructureRegistrationOptions& options);
+                                        const StructureRegistrationOptions& options,
+                                        const StructureDrift* drift = nullptr);
 
 }  // namespace epiloc
