@@ -36,6 +36,7 @@ struct Pair {
   Eigen::Vector3d q;
   Eigen::Matrix3d p;
   Eigen::Vector3d k;
+  size_t index = 0;  // of the point
 };
 
 // The structure as registered: points, their drift directions (ScaleDriftPath; null: no
@@ -67,7 +68,7 @@ std::vector<Pair> FindPairs(const Warped& structure,
             ? Eigen::Vector3d(sim.scale * (sim.rotation * (*structure.directions)[i]))
             : Eigen::Vector3d::Zero();
     pairs.push_back({transformed[i], map.Point(nearest[i]).cast<double>(),
-                     map.Projector(nearest[i]).cast<double>(), k});
+                     map.Projector(nearest[i]).cast<double>(), k, i});
   }
   return pairs;
 }
@@ -503,33 +504,44 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
       h.fullPivLu().inverse() * std::max(result.rms_m * result.rms_m, 1e-12);
   result.along_sigma_m = std::sqrt(std::max(0.0, u.dot(covariance.block<3, 3>(3, 3) * u)));
   // The Hessian sees only the final pairs: moved along the road, a structure of facades finds
-  // other pairs as good (the cost is flat there, or has minima a window apart). So the points on
-  // the map's surface (within the finest level's loss scale) are counted over moves along u,
-  // re-paired at each: a count within twice its Poisson deviation of the fit's is not told apart
-  // from it, and the largest such move is taken as 2 sigma. A move by the finest distance takes
-  // a point off its pair's inlier band: finer steps add nothing.
+  // other pairs as good (the cost is flat there, or has minima a window apart). So the fit is
+  // moved along u, re-paired at each move, and which points lie on the map's surface (within the
+  // finest level's loss scale) compared with the fit's: a move is not told apart from the fit
+  // unless the points it takes off the surface outnumber those it puts on by twice the
+  // deviation of that difference (McNemar's test on the paired outcomes: lost - gained <
+  // 2 sqrt(lost + gained)); the largest such move is taken as 2 sigma. Points that stay on a
+  // facade either way carry no information about the move and no noise into the test (a test
+  // of the whole count against its Poisson deviation, 2 sqrt(count), drowned the few points on
+  // surfaces facing along the road in them). A move by the finest distance takes a point off
+  // its pair's inlier band: finer steps add nothing.
   const double surface_m = options.loss_scale_ratio * finest;
   const auto on_surface = [&](double move_m) {
     Similarity3 moved = sim;
     moved.translation += move_m * u;
-    int count = 0;
+    std::vector<uint8_t> on(points.size(), 0);
     for (const Pair& p : FindPairs(structure, moved, map, finest)) {
-      count += PairResidual(p) <= surface_m ? 1 : 0;
+      on[p.index] = PairResidual(p) <= surface_m ? 1 : 0;
     }
-    return count;
+    return on;
   };
   // The search's reach also when the search is off (a registration from a given start, e.g. a
   // neighbour's fit, is no better fixed along the road than one that searched).
   const double reach_m =
       options.search_along_m > 0.0 ? options.search_along_m : options.max_distances_m.front();
-  result.along_points_on_surface = on_surface(0.0);
-  const double tie =
-      2.0 * std::sqrt(static_cast<double>(std::max(result.along_points_on_surface, 1)));
+  const std::vector<uint8_t> at_fit = on_surface(0.0);
+  result.along_points_on_surface =
+      static_cast<int>(std::count(at_fit.begin(), at_fit.end(), uint8_t{1}));
   for (int k = 1; k * finest <= reach_m + 1e-9; ++k) {
     for (const int sign : {-1, 1}) {
-      if (on_surface(sign * k * finest) + tie >= result.along_points_on_surface) {
-        result.along_ambiguity_m = k * finest;
+      const std::vector<uint8_t> at_move = on_surface(sign * k * finest);
+      int lost = 0, gained = 0;
+      for (size_t i = 0; i < at_fit.size(); ++i) {
+        lost += at_fit[i] && !at_move[i] ? 1 : 0;
+        gained += !at_fit[i] && at_move[i] ? 1 : 0;
       }
+      const bool tied =
+          lost - gained < 2.0 * std::sqrt(static_cast<double>(std::max(lost + gained, 1)));
+      if (tied) result.along_ambiguity_m = k * finest;
     }
   }
   result.along_sigma_m = std::max(result.along_sigma_m, 0.5 * result.along_ambiguity_m);

@@ -29,6 +29,8 @@ struct Errors {
   int posed = 0;
   std::vector<double> along_m;
   std::vector<double> along_sigma_m;
+  std::vector<double> posed_horizontal_m;
+  std::vector<double> posed_rotation_deg;
   double max_across_m = 0.0;
   double max_rotation_posed_deg = 0.0;
 };
@@ -55,6 +57,8 @@ Errors Compare(const AnchorDriveResult& result, const Drive& drive, const EnuFra
     ++e.posed;
     e.along_m.push_back(d.dot(forward));
     e.along_sigma_m.push_back(a.along_sigma_m);
+    e.posed_horizontal_m.push_back(d.head<2>().norm());
+    e.posed_rotation_deg.push_back(rotation_deg);
     e.max_across_m = std::max(e.max_across_m, std::abs(d.dot(left)));
     e.max_rotation_posed_deg = std::max(e.max_rotation_posed_deg, rotation_deg);
     // The error rotation in the map: its vertical part a turn, the rest a tilt.
@@ -211,7 +215,47 @@ TEST(StructureAnchor, SiftStructureAlongTheVoPosesPlacesTheSyntheticQuery) {
   EXPECT_LT(with_sift.max_across_m, with_klt.max_across_m);
   EXPECT_LE(with_sift.max_rotation_posed_deg, 0.25);
   EXPECT_LT(with_sift.max_rotation_posed_deg, with_klt.max_rotation_posed_deg);
-  EXPECT_EQ(with_sift.ok, 0);
+  // An anchor the along-track profile calls ok (none is here) is right.
+  if (with_sift.ok > 0) EXPECT_LE(with_sift.max_horizontal_m, 0.1);
+}
+
+// The synthetic street's default 15 Hz query (`epiloc synth --length-m 50 --seed 3`: 165 frames,
+// 42 anchors every 4th frame), SIFT structure along its VO poses: issue 17's synthetic targets
+// (<= 0.05 m and 0.1 deg) and what the along-track profile calls ok.
+TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
+  SynthOptions synth;
+  synth.length_m = 50.0;
+  synth.seed = 3;
+  const std::string world = SharedWorld("epiloc_anchor_test_world_15hz_v1", synth);
+  const Drive query = LoadDrive(world + "/query");
+  const VoStructure klt = VoStructure::FromResult(RunVisualOdometry(query, VoOptions()));
+  BuildDbOptions build;
+  build.num_threads = 2;
+  const VoStructure sift = TriangulateAlongVo(world + "/query", klt, build);
+  const AnchorDriveResult result = AnchorDriveByStructure(QueryInputs(world), sift, QueryOptions());
+  const Errors e = Compare(result, query, EnuFrame(SynthOrigin()));
+  ASSERT_EQ(e.posed, e.total);
+  ASSERT_GE(e.total, 40);
+  const double max_h = *std::max_element(e.posed_horizontal_m.begin(), e.posed_horizontal_m.end());
+  const double max_r = *std::max_element(e.posed_rotation_deg.begin(), e.posed_rotation_deg.end());
+  std::printf(
+      "15 Hz query, SIFT structure: %d of %d ok (max %.3f m, %.3f deg); every posed anchor: "
+      "horizontal median %.3f max %.3f m, rotation median %.3f max %.3f deg, %.2f s per anchor\n",
+      e.ok, e.total, e.max_horizontal_m, e.max_rotation_deg, Median(e.posed_horizontal_m), max_h,
+      Median(e.posed_rotation_deg), max_r, e.seconds);
+  // Measured (2026-11-27): 23 of 42 ok, within 0.083 m and 0.099 deg; every anchor: median
+  // 0.037 m, max 0.123 m, rotation median 0.066 deg, max 0.099 deg (the CLI with `epiloc vo`'s
+  // trajectory: 25 ok, 0.035 / 0.126 m, 0.067 / 0.116 deg). The medians meet the targets, the
+  // worst anchors not by position; before the drift pass and the paired along-track test:
+  // median 0.049 m, max 0.59 m, rotation max 0.42 deg, none ok.
+  EXPECT_LE(Median(e.posed_horizontal_m), 0.05);
+  EXPECT_LE(Median(e.posed_rotation_deg), 0.1);
+  EXPECT_LE(max_h, 0.25);
+  EXPECT_LE(max_r, 0.2);
+  // What is called ok is right, and so is a good share of the anchors.
+  EXPECT_GE(e.ok * 5, e.total * 2);
+  EXPECT_LE(e.max_horizontal_m, 0.1);
+  EXPECT_LE(e.max_rotation_deg, 0.15);
 }
 
 // Six anchors 5 m apart along a VO trajectory scaled 2x into the map: with exact similarities

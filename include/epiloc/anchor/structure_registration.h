@@ -110,12 +110,14 @@ struct StructureRegistration {
   // The Hessian's sigma holds only while the pairs do: moved along the road, a street of facades
   // finds other pairs as good. So the fit is also moved along d in steps of the finest distance
   // within the search's reach (search_along_m, also when the search is off; when it is 0, the
-  // first correspondence distance), re-paired, and its points within the finest level's loss scale
-  // of the map's surface counted: along_ambiguity_m is the largest move whose count is within twice
-  // its Poisson deviation (2 sqrt(count)) of the fit's (the reach: nothing fixes it), and
-  // along_sigma_m is at least half of it (that interval taken as +-2 sigma).
+  // first correspondence distance), re-paired, and which points lie within the finest level's
+  // loss scale of the map's surface compared with the fit's: along_ambiguity_m is the largest
+  // move whose points lost from the surface do not outnumber those gained by twice the
+  // deviation of the difference (McNemar: lost - gained < 2 sqrt(lost + gained); the reach:
+  // nothing fixes it), and along_sigma_m is at least half of it (that interval taken as +-2
+  // sigma).
   double along_ambiguity_m = 0.0;
-  int along_points_on_surface = 0;  // the fit's count in that profile
+  int along_points_on_surface = 0;  // the fit's points on the surface in that profile
   double condition = 0.0;           // largest / smallest eigenvalue of the translation block
   // The scale drift estimated (ScaleDriftPath), relative change of scale per metre of road
   // (positive: the structure's scale grows ahead); 0 without a drift model.
