@@ -563,6 +563,18 @@ std::optional<Placements> PlaceByNeighbours(const std::vector<PlacedAnchor>& anc
   return p;
 }
 
+// The anchors with a pose and a VO pose, in frame order.
+std::vector<Posed> PosedAnchors(const std::vector<size_t>& indices,
+                                const std::vector<int>& pose_of,
+                                const AnchorDriveResult& out) {
+  std::vector<Posed> posed;
+  for (size_t k = 0; k < out.frames.size(); ++k) {
+    const int pose = pose_of[indices[k]];
+    if (out.frames[k].has_pose && pose >= 0) posed.push_back({k, pose});
+  }
+  return posed;
+}
+
 // The anchors of `posed` as the consensus pass sees them.
 std::vector<PlacedAnchor> Place(const std::vector<Posed>& posed,
                                 const VoStructure& vo,
@@ -591,11 +603,7 @@ void ApplyConsensus(const Drive& drive,
                     const EnuFrame& map_frame,
                     const StructureAnchorOptions& options,
                     AnchorDriveResult* out) {
-  std::vector<Posed> posed;
-  for (size_t k = 0; k < out->frames.size(); ++k) {
-    const int pose = pose_of[indices[k]];
-    if (out->frames[k].has_pose && pose >= 0) posed.push_back({k, pose});
-  }
+  const std::vector<Posed> posed = PosedAnchors(indices, pose_of, *out);
   const std::vector<PlacedAnchor> placed = Place(posed, vo, *out);
   const double radius = options.consensus_radius_m;
   std::vector<std::pair<size_t, Restart>> redo;
@@ -713,11 +721,7 @@ void ApplyDriftAcrossAnchors(const Drive& drive,
                              const EnuFrame& map_frame,
                              const StructureAnchorOptions& options,
                              AnchorDriveResult* out) {
-  std::vector<Posed> posed;
-  for (size_t k = 0; k < out->frames.size(); ++k) {
-    const int pose = pose_of[indices[k]];
-    if (out->frames[k].has_pose && pose >= 0) posed.push_back({k, pose});
-  }
+  const std::vector<Posed> posed = PosedAnchors(indices, pose_of, *out);
   const std::vector<double> drift = DriftAcrossAnchors(posed, vo, *out, options);
   // The schedule's levels that free the scale: the drift changes the scale at the camera.
   std::vector<double> levels;
