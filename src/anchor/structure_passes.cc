@@ -1,0 +1,254 @@
+// The passes of structure anchoring over all anchors of a drive: the scale drift from the
+// anchors' scales, and the consensus of neighbouring anchors (structure_anchor.h).
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <spdlog/spdlog.h>
+
+#include "epiloc/anchor/structure_anchor.h"
+#include "epiloc/core/parallel.h"
+#include "structure_anchor_internal.h"
+
+namespace epiloc {
+namespace structure_internal {
+namespace {
+
+// A posed anchor of the consensus pass.
+struct Posed {
+  size_t k;  // index into AnchorDriveResult::frames
+  int pose;  // index into VoStructure::poses
+};
+struct Placements {
+  Eigen::Vector2d median;
+  std::vector<std::pair<Eigen::Vector2d, size_t>> each;  // placement, index into `anchors`
+};
+
+// The horizontal placements of anchor `i`'s camera by the similarities of the anchors around it
+// (same segment, map centres within half the window; `i` itself included when include_self) and
+// their median per axis; nullopt below three.
+std::optional<Placements> PlaceByNeighbours(const std::vector<PlacedAnchor>& anchors,
+                                            size_t i,
+                                            bool include_self,
+                                            double window_m) {
+  const PlacedAnchor& a = anchors[i];
+  Placements p;
+  for (size_t j = 0; j < anchors.size(); ++j) {
+    if (anchors[j].segment != a.segment || (j == i && !include_self)) continue;
+    if ((anchors[j].map_centre - a.map_centre).head<2>().norm() > 0.5 * window_m) continue;
+    p.each.push_back({(anchors[j].map_from_world * a.vo_centre).head<2>(), j});
+  }
+  if (p.each.size() < 3) return std::nullopt;
+  std::vector<double> xs, ys;
+  for (const auto& e : p.each) {
+    xs.push_back(e.first.x());
+    ys.push_back(e.first.y());
+  }
+  std::nth_element(xs.begin(), xs.begin() + xs.size() / 2, xs.end());
+  std::nth_element(ys.begin(), ys.begin() + ys.size() / 2, ys.end());
+  p.median = Eigen::Vector2d(xs[xs.size() / 2], ys[ys.size() / 2]);
+  return p;
+}
+
+// The anchors with a pose and a VO pose, in frame order.
+std::vector<Posed> PosedAnchors(const std::vector<size_t>& indices,
+                                const std::vector<int>& pose_of,
+                                const AnchorDriveResult& out) {
+  std::vector<Posed> posed;
+  for (size_t k = 0; k < out.frames.size(); ++k) {
+    const int pose = pose_of[indices[k]];
+    if (out.frames[k].has_pose && pose >= 0) posed.push_back({k, pose});
+  }
+  return posed;
+}
+
+// The anchors of `posed` as the consensus pass sees them.
+std::vector<PlacedAnchor> Place(const std::vector<Posed>& posed,
+                                const VoStructure& vo,
+                                const AnchorDriveResult& out) {
+  std::vector<PlacedAnchor> placed;
+  for (const Posed& p : posed) {
+    const AnchorResult& a = out.frames[p.k];
+    const Rigid3d& world_from_cam = vo.poses[static_cast<size_t>(p.pose)].world_from_cam;
+    placed.push_back({ImpliedSimilarity(a, world_from_cam), world_from_cam.translation,
+                      a.map_from_cam.translation, vo.SegmentOf(a.frame)});
+  }
+  return placed;
+}
+
+// The VO's scale drift at each posed anchor (ScaleDriftModel::kAcrossAnchors): the slope of the
+// log of the anchors' scales (metres per VO unit) over their distance along the VO path (metres,
+// at the anchor's scale), by least squares over the anchors of its segment within half the
+// window; 0 (none known) with fewer than three of them or spread over less than a quarter of
+// the window. A window's scale is the drifting scale averaged over its structure: the average
+// moves with the drift (the slope is the drift's), and no window's fit can trade a drift for a
+// move along the road (as the per-window estimate does on a street of facades).
+std::vector<double> DriftAcrossAnchors(const std::vector<Posed>& posed,
+                                       const VoStructure& vo,
+                                       const AnchorDriveResult& out,
+                                       const StructureAnchorOptions& options) {
+  std::vector<double> arc(vo.poses.size(), 0.0);
+  for (size_t j = 1; j < vo.poses.size(); ++j) {
+    arc[j] = arc[j - 1] +
+             (vo.poses[j].world_from_cam.translation - vo.poses[j - 1].world_from_cam.translation)
+                 .norm();
+  }
+  std::vector<double> drift(posed.size(), 0.0);
+  const double limit = options.registration.max_scale_drift_per_m;
+  for (size_t i = 0; i < posed.size(); ++i) {
+    const AnchorResult& a = out.frames[posed[i].k];
+    const int segment = vo.SegmentOf(a.frame);
+    std::vector<Eigen::Vector2d> xy;  // (metres along the path from anchor i, log scale)
+    for (const Posed& p : posed) {
+      const AnchorResult& b = out.frames[p.k];
+      if (vo.SegmentOf(b.frame) != segment || !(b.scale_m_per_unit > 0.0)) continue;
+      const double x =
+          (arc[static_cast<size_t>(p.pose)] - arc[static_cast<size_t>(posed[i].pose)]) *
+          a.scale_m_per_unit;
+      if (std::abs(x) <= 0.5 * options.window_m) xy.push_back({x, std::log(b.scale_m_per_unit)});
+    }
+    if (xy.size() < 3) continue;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    double lo = INFINITY, hi = -INFINITY;
+    for (const Eigen::Vector2d& v : xy) {
+      mean += v;
+      lo = std::min(lo, v.x());
+      hi = std::max(hi, v.x());
+    }
+    mean /= static_cast<double>(xy.size());
+    if (hi - lo < 0.25 * options.window_m) continue;
+    double sxx = 0.0, sxy = 0.0;
+    for (const Eigen::Vector2d& v : xy) {
+      sxx += (v.x() - mean.x()) * (v.x() - mean.x());
+      sxy += (v.x() - mean.x()) * (v.y() - mean.y());
+    }
+    drift[i] = std::clamp(sxy / sxx, -limit, limit);
+  }
+  return drift;
+}
+
+}  // namespace
+
+// The consensus pass (StructureAnchorOptions::consensus_radius_m): each posed anchor's camera is
+// placed by the similarities of the posed anchors around it (same segment, within half the window
+// along the road); where most of them agree (within the radius of their median, at least three)
+// and the anchor's own fit does not, it is registered again from the agreeing similarity nearest
+// the median, with the fine levels only. Then an ok anchor whose neighbours' placements (itself
+// left out) have their median beyond 2 max_along_sigma_m of it is not ok.
+void ApplyConsensus(const Drive& drive,
+                    const std::vector<size_t>& indices,
+                    const std::vector<int>& pose_of,
+                    const VoStructure& vo,
+                    const MapLoader& load,
+                    const EnuFrame& map_frame,
+                    const StructureAnchorOptions& options,
+                    AnchorDriveResult* out) {
+  const std::vector<Posed> posed = PosedAnchors(indices, pose_of, *out);
+  const std::vector<PlacedAnchor> placed = Place(posed, vo, *out);
+  const double radius = options.consensus_radius_m;
+  std::vector<std::pair<size_t, Restart>> redo;
+  for (size_t i = 0; i < placed.size(); ++i) {
+    const std::optional<Placements> p = PlaceByNeighbours(placed, i, true, options.window_m);
+    if (!p) continue;
+    int agreeing = 0;
+    size_t nearest = i;
+    double nearest_m = INFINITY;
+    for (const auto& [at, j] : p->each) {
+      const double d = (at - p->median).norm();
+      if (d > radius) continue;
+      ++agreeing;
+      if (d < nearest_m) {
+        nearest_m = d;
+        nearest = j;
+      }
+    }
+    if (agreeing < 3 || 2 * agreeing <= static_cast<int>(p->each.size())) continue;
+    if ((placed[i].map_centre.head<2>() - p->median).norm() <= radius || nearest == i) continue;
+    const double drift = out->frames[posed[i].k].scale_drift_per_m;
+    redo.push_back({posed[i].k,
+                    {placed[nearest].map_from_world, std::isfinite(drift) ? drift : 0.0,
+                     options.refine_distances_m}});
+  }
+  ParallelFor(static_cast<int64_t>(redo.size()), options.num_threads, [&](int64_t r) {
+    const auto& [k, restart] = redo[static_cast<size_t>(r)];
+    AnchorResult again =
+        AnchorOne(drive, indices[k], pose_of, vo, load, map_frame, options, &restart);
+    if (!again.has_pose) return;
+    again.seconds += out->frames[k].seconds;
+    const std::string note = "re-registered from the consensus of its neighbours";
+    again.message = again.message.empty() ? note : again.message + "; " + note;
+    out->frames[k] = again;
+  });
+  spdlog::debug("structure anchors: {} of {} posed re-registered from their neighbours' consensus",
+                redo.size(), posed.size());
+
+  // An anchor called ok claims its place along the road to 2 sigma = 2 max_along_sigma_m. Where
+  // at least three posed neighbours place its camera (their similarities and the VO, the anchor
+  // itself left out) and their median lies farther than that, the claim does not hold: an anchor
+  // can be sharp and wrong where the structure's error is shaped like a move (KITTI with its
+  // track stretched to agree with the LiDAR: frames 0-20 called ok 0.55-1.44 m off).
+  const double claim_m = 2.0 * options.max_along_sigma_m;
+  const std::vector<std::optional<double>> off =
+      NeighbourDisagreement(Place(posed, vo, *out), options.window_m);
+  for (size_t i = 0; i < posed.size(); ++i) {
+    AnchorResult& a = out->frames[posed[i].k];
+    if (a.status != AnchorStatus::kOk || !off[i] || *off[i] <= claim_m) continue;
+    a.status = AnchorStatus::kRejected;
+    const std::string note = fmt::format(
+        "its neighbours place it {:.2f} m away, beyond its 2 sigma {:.2f} m", *off[i], claim_m);
+    a.message = a.message.empty() ? note : a.message + "; " + note;
+  }
+}
+
+// Each posed anchor registered again from its own fit, over the schedule's levels that free the
+// scale, with the drift its neighbours' scales give (DriftAcrossAnchors).
+void ApplyDriftAcrossAnchors(const Drive& drive,
+                             const std::vector<size_t>& indices,
+                             const std::vector<int>& pose_of,
+                             const VoStructure& vo,
+                             const MapLoader& load,
+                             const EnuFrame& map_frame,
+                             const StructureAnchorOptions& options,
+                             AnchorDriveResult* out) {
+  const std::vector<Posed> posed = PosedAnchors(indices, pose_of, *out);
+  const std::vector<double> drift = DriftAcrossAnchors(posed, vo, *out, options);
+  // The schedule's levels that free the scale: the drift changes the scale at the camera.
+  std::vector<double> levels;
+  for (const double d : options.registration.max_distances_m) {
+    if (d <= options.registration.min_scale_distance_m) levels.push_back(d);
+  }
+  if (levels.empty()) levels.push_back(options.registration.max_distances_m.back());
+  ParallelFor(static_cast<int64_t>(posed.size()), options.num_threads, [&](int64_t r) {
+    const size_t i = static_cast<size_t>(r);
+    const size_t k = posed[i].k;
+    Restart restart;
+    restart.sim = ImpliedSimilarity(out->frames[k],
+                                    vo.poses[static_cast<size_t>(posed[i].pose)].world_from_cam);
+    restart.drift_per_m = drift[i];
+    restart.levels_m = levels;
+    AnchorResult again =
+        AnchorOne(drive, indices[k], pose_of, vo, load, map_frame, options, &restart);
+    if (!again.has_pose) return;
+    again.seconds += out->frames[k].seconds;
+    out->frames[k] = again;
+  });
+}
+
+}  // namespace structure_internal
+
+std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<PlacedAnchor>& anchors,
+                                                         double window_m) {
+  std::vector<std::optional<double>> off(anchors.size());
+  for (size_t i = 0; i < anchors.size(); ++i) {
+    if (const std::optional<structure_internal::Placements> p =
+            structure_internal::PlaceByNeighbours(anchors, i, false, window_m)) {
+      off[i] = (anchors[i].map_centre.head<2>() - p->median).norm();
+    }
+  }
+  return off;
+}
+
+}  // namespace epiloc
