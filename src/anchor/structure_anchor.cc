@@ -524,6 +524,16 @@ Similarity3 ImpliedSimilarity(const AnchorResult& a, const Rigid3d& world_from_c
 
 }  // namespace structure_internal
 
+double MedianAlongSigma(const AnchorDriveResult& result) {
+  std::vector<double> sigmas;
+  for (const AnchorResult& a : result.frames) {
+    if (a.has_pose && std::isfinite(a.along_sigma_m)) sigmas.push_back(a.along_sigma_m);
+  }
+  if (sigmas.empty()) return INFINITY;
+  std::nth_element(sigmas.begin(), sigmas.begin() + sigmas.size() / 2, sigmas.end());
+  return sigmas[sigmas.size() / 2];
+}
+
 AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
                                          const VoStructure& vo,
                                          const StructureAnchorOptions& options,

@@ -144,7 +144,7 @@ int RunAnchor(int argc, char** argv) {
   AnchorInputs inputs;
   AnchorOptions options;
   std::string frames_text, out_path, origin_text, db_path, matcher = "akaze", shading = "auto";
-  std::string method = "auto", vo_points_path, structure_source = "vo", scale_drift = "anchors";
+  std::string method = "auto", vo_points_path, structure_source = "auto", scale_drift = "anchors";
   StructureAnchorOptions structure;
   app.add_option("--cloud", inputs.cloud_path, "Map: point-cloud file or tile directory")
       ->required();
@@ -224,8 +224,9 @@ int RunAnchor(int argc, char** argv) {
   app.add_option("--vo-points", vo_points_path,
                  "structure: the VO points CSV (default: beside --vo, .points.csv)");
   app.add_option("--structure", structure_source,
-                 "structure: the points registered to the map: sift (the drive's SIFT "
-                 "features triangulated along the VO poses) or vo (the VO's own KLT points)")
+                 "structure: the points registered to the map: vo (the VO's own KLT points), sift "
+                 "(the drive's SIFT features triangulated along the VO poses) or auto (vo; where "
+                 "its anchors are not fixed along the road, sift too, and the better fixed kept)")
       ->capture_default_str();
   app.add_option("--consensus-radius", structure.consensus_radius_m,
                  "structure: anchors farther than this from their neighbours' agreed placement "
@@ -275,8 +276,8 @@ int RunAnchor(int argc, char** argv) {
   } else {
     Throw("--scale-drift: unknown model '{}' (anchors, window, none)", scale_drift);
   }
-  if (structure_source != "sift" && structure_source != "vo") {
-    Throw("--structure: unknown structure '{}' (sift, vo)", structure_source);
+  if (structure_source != "sift" && structure_source != "vo" && structure_source != "auto") {
+    Throw("--structure: unknown structure '{}' (auto, sift, vo)", structure_source);
   }
   if (method != "structure" && method != "render" && method != "photos") {
     Throw("--method: unknown anchoring method '{}' (auto, structure, render, photos)", method);
@@ -318,20 +319,50 @@ int RunAnchor(int argc, char** argv) {
     structure.heading_error_deg = options.heading_error_deg;
     structure.seed = options.seed;
     structure.num_threads = options.num_threads;
-    VoStructure vo = VoStructure::Read(inputs.vo_path, vo_points_path);
-    if (structure_source == "sift") {
+    const VoStructure vo = VoStructure::Read(inputs.vo_path, vo_points_path);
+    const auto with_sift = [&] {
       BuildDbOptions build;
       build.num_threads = options.num_threads;
       SiftStructureSummary sift;
       Progress triangulation("structure", 0);
-      vo = TriangulateAlongVo(inputs.drive_dir, vo, build, &sift, triangulation.Callback());
+      const VoStructure triangulated =
+          TriangulateAlongVo(inputs.drive_dir, vo, build, &sift, triangulation.Callback());
       triangulation.Finish();
       spdlog::info(
           "structure: {} SIFT points (mean track {:.1f} frames) triangulated along the VO poses "
           "of {} frames in {} segment(s), {:.1f} s",
           sift.points, sift.mean_track_length, sift.frames, sift.segments, sift.seconds);
+      Progress sift_progress("anchor (SIFT structure)", 0);
+      AnchorDriveResult r =
+          AnchorDriveByStructure(inputs, triangulated, structure, sift_progress.Callback());
+      sift_progress.Finish();
+      return r;
+    };
+    if (structure_source == "sift") {
+      result = with_sift();
+    } else {
+      result = AnchorDriveByStructure(inputs, vo, structure, progress.Callback());
     }
-    result = AnchorDriveByStructure(inputs, vo, structure, progress.Callback());
+    if (structure_source == "auto") {
+      // The VO's points first; where they do not fix the anchors along the road (median
+      // along_sigma_m above the ok gate), the SIFT structure too, and the better fixed kept.
+      const double klt = MedianAlongSigma(result);
+      if (klt > structure.max_along_sigma_m) {
+        progress.Finish();
+        AnchorDriveResult sift = with_sift();
+        const double by_sift = MedianAlongSigma(sift);
+        spdlog::info(
+            "structure auto: median along-road sigma {:.3f} m with the VO's points, {:.3f} m with "
+            "the SIFT structure: the {} kept",
+            klt, by_sift, by_sift < klt ? "SIFT structure" : "VO's points");
+        if (by_sift < klt) result = std::move(sift);
+      } else {
+        spdlog::info(
+            "structure auto: the VO's points fix the anchors along the road (median sigma {:.3f} "
+            "m), no SIFT structure",
+            klt);
+      }
+    }
   } else {
     if (method == "render") inputs.photos_dir.clear();
     result = AnchorDrive(inputs, options, progress.Callback());

@@ -147,6 +147,11 @@ struct PlacedAnchor {
 std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<PlacedAnchor>& anchors,
                                                          double window_m);
 
+// The median along_sigma_m of the anchors with a pose (infinity without any): how well the
+// registrations fix them along the road, the direction a structure fixes least. `epiloc anchor
+// --structure auto` keeps, of the VO's points and the SIFT structure, the one with the smaller.
+double MedianAlongSigma(const AnchorDriveResult& result);
+
 // Anchors the selected frames of a drive (inputs.frames / inputs.every; photos_dir unused) by
 // registering `vo`'s structure to the map. Frames without a VO pose are `lost`. Throws Error as
 // AnchorDrive does. `progress` gets (frames done, frames).

@@ -1,6 +1,6 @@
-// Structure for anchoring (`epiloc anchor --vo ... --structure sift`, the default): the drive's own
-// SIFT features matched between neighbouring frames and triangulated along its VO poses, in
-// place of the VO's KLT points.
+// Structure for anchoring (`epiloc anchor --vo ... --structure sift`; the default, `--structure
+// vo`, registers the VO's own KLT points): the drive's own SIFT features matched between
+// neighbouring frames and triangulated along its VO poses, in place of the VO's KLT points.
 //
 // The VO's poses are good (synthetic street: 0.008 m median under the true similarity) but its
 // points are not: a KLT track drifts over its length and its depth comes from few keyframes
