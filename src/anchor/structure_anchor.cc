@@ -172,14 +172,13 @@ Similarity3 Rewarped(const std::vector<Eigen::Vector3d>& points,
 
 namespace structure_internal {
 
-AnchorResult AnchorOne(const Drive& drive,
-                       size_t index,
-                       const std::vector<int>& pose_of,
-                       const VoStructure& vo,
-                       const MapLoader& load,
-                       const EnuFrame& map_frame,
-                       const StructureAnchorOptions& options,
-                       const Restart* restart) {
+AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* restart) {
+  const Drive& drive = run.drive;
+  const std::vector<int>& pose_of = run.pose_of;
+  const VoStructure& vo = run.vo;
+  const MapLoader& load = run.load;
+  const EnuFrame& map_frame = run.map_frame;
+  const StructureAnchorOptions& options = run.options;
   const Similarity3* given = restart ? &restart->sim : nullptr;
   const double drift_per_m = restart ? restart->drift_per_m : 0.0;
   const auto start = std::chrono::steady_clock::now();
@@ -591,7 +590,7 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
     if (options.map_voxel_m > 0) shared = VoxelFilter(shared, options.map_voxel_m);
   }
   std::mutex load_mutex;
-  const auto load = [&](const Eigen::Vector3d& at, double radius) {
+  const structure_internal::MapLoader load = [&](const Eigen::Vector3d& at, double radius) {
     if (share) {
       PointCloud near;
       const float r2 = static_cast<float>(radius * radius);
@@ -611,20 +610,20 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
     near.rgb.clear();
     return options.map_voxel_m > 0 ? VoxelFilter(near, options.map_voxel_m) : near;
   };
+  const structure_internal::DriveAnchoring run{drive, indices,   pose_of, timed,
+                                               load,  map_frame, options};
   ParallelFor(static_cast<int64_t>(indices.size()), options.num_threads, [&](int64_t k) {
-    out.frames[static_cast<size_t>(k)] = structure_internal::AnchorOne(
-        drive, indices[static_cast<size_t>(k)], pose_of, timed, load, map_frame, options);
+    out.frames[static_cast<size_t>(k)] =
+        structure_internal::AnchorOne(run, indices[static_cast<size_t>(k)]);
     std::lock_guard<std::mutex> lock(progress_mutex);
     ++done;
     if (progress) progress(done, static_cast<int64_t>(indices.size()));
   });
   if (options.scale_drift == ScaleDriftModel::kAcrossAnchors) {
-    structure_internal::ApplyDriftAcrossAnchors(drive, indices, pose_of, timed, load, map_frame,
-                                                options, &out);
+    structure_internal::ApplyDriftAcrossAnchors(run, &out);
   }
   if (options.consensus_radius_m > 0.0) {
-    structure_internal::ApplyConsensus(drive, indices, pose_of, timed, load, map_frame, options,
-                                       &out);
+    structure_internal::ApplyConsensus(run, &out);
   }
   for (const AnchorResult& r : out.frames) out.num_ok += r.status == AnchorStatus::kOk ? 1 : 0;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -26,41 +26,33 @@ struct Restart {
   std::vector<double> levels_m;
 };
 
-// Anchors the frame drive.frames[index] (pose_of: its VO pose index per drive frame, or -1); see
-// the top of structure_anchor.h. With `restart`, from its similarity instead of the GPS seed.
-AnchorResult AnchorOne(const Drive& drive,
-                       size_t index,
-                       const std::vector<int>& pose_of,
-                       const VoStructure& vo,
-                       const MapLoader& load,
-                       const EnuFrame& map_frame,
-                       const StructureAnchorOptions& options,
-                       const Restart* restart = nullptr);
+// What anchoring a drive's frames shares: the drive, its frames to anchor (`indices` into
+// drive.frames), their VO poses (`pose_of`: per drive frame its index in vo.poses, or -1), the map
+// and the options.
+struct DriveAnchoring {
+  const Drive& drive;
+  const std::vector<size_t>& indices;
+  const std::vector<int>& pose_of;
+  const VoStructure& vo;
+  const MapLoader& load;
+  const EnuFrame& map_frame;
+  const StructureAnchorOptions& options;
+};
+
+// Anchors drive.frames[index]; see the top of structure_anchor.h. With `restart`, from its
+// similarity instead of the GPS seed.
+AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* restart = nullptr);
 
 // The similarity VO world -> map an anchored frame's pose implies.
 Similarity3 ImpliedSimilarity(const AnchorResult& a, const Rigid3d& world_from_cam);
 
-// The drift pass (ScaleDriftModel::kAcrossAnchors): the VO's scale drift at each posed anchor of
-// `out` (frames `indices` of `drive`) from the scales of the anchors around it, then each
+// The drift pass (ScaleDriftModel::kAcrossAnchors) over `out` (one result per run.indices): the
+// VO's scale drift at each posed anchor from the scales of the anchors around it, then each
 // registered again from its own fit with its structure warped by that drift.
-void ApplyDriftAcrossAnchors(const Drive& drive,
-                             const std::vector<size_t>& indices,
-                             const std::vector<int>& pose_of,
-                             const VoStructure& vo,
-                             const MapLoader& load,
-                             const EnuFrame& map_frame,
-                             const StructureAnchorOptions& options,
-                             AnchorDriveResult* out);
+void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out);
 
 // The consensus pass (StructureAnchorOptions::consensus_radius_m; structure_passes.cc).
-void ApplyConsensus(const Drive& drive,
-                    const std::vector<size_t>& indices,
-                    const std::vector<int>& pose_of,
-                    const VoStructure& vo,
-                    const MapLoader& load,
-                    const EnuFrame& map_frame,
-                    const StructureAnchorOptions& options,
-                    AnchorDriveResult* out);
+void ApplyConsensus(const DriveAnchoring& run, AnchorDriveResult* out);
 
 }  // namespace structure_internal
 }  // namespace epiloc

@@ -138,15 +138,10 @@ std::vector<double> DriftAcrossAnchors(const std::vector<Posed>& posed,
 // and the anchor's own fit does not, it is registered again from the agreeing similarity nearest
 // the median, with the fine levels only. Then an ok anchor whose neighbours' placements (itself
 // left out) have their median beyond 2 max_along_sigma_m of it is not ok.
-void ApplyConsensus(const Drive& drive,
-                    const std::vector<size_t>& indices,
-                    const std::vector<int>& pose_of,
-                    const VoStructure& vo,
-                    const MapLoader& load,
-                    const EnuFrame& map_frame,
-                    const StructureAnchorOptions& options,
-                    AnchorDriveResult* out) {
-  const std::vector<Posed> posed = PosedAnchors(indices, pose_of, *out);
+void ApplyConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
+  const StructureAnchorOptions& options = run.options;
+  const VoStructure& vo = run.vo;
+  const std::vector<Posed> posed = PosedAnchors(run.indices, run.pose_of, *out);
   const std::vector<PlacedAnchor> placed = Place(posed, vo, *out);
   const double radius = options.consensus_radius_m;
   std::vector<std::pair<size_t, Restart>> redo;
@@ -174,8 +169,7 @@ void ApplyConsensus(const Drive& drive,
   }
   ParallelFor(static_cast<int64_t>(redo.size()), options.num_threads, [&](int64_t r) {
     const auto& [k, restart] = redo[static_cast<size_t>(r)];
-    AnchorResult again =
-        AnchorOne(drive, indices[k], pose_of, vo, load, map_frame, options, &restart);
+    AnchorResult again = AnchorOne(run, run.indices[k], &restart);
     if (!again.has_pose) return;
     again.seconds += out->frames[k].seconds;
     const std::string note = "re-registered from the consensus of its neighbours";
@@ -205,15 +199,10 @@ void ApplyConsensus(const Drive& drive,
 
 // Each posed anchor registered again from its own fit, over the schedule's levels that free the
 // scale, with the drift its neighbours' scales give (DriftAcrossAnchors).
-void ApplyDriftAcrossAnchors(const Drive& drive,
-                             const std::vector<size_t>& indices,
-                             const std::vector<int>& pose_of,
-                             const VoStructure& vo,
-                             const MapLoader& load,
-                             const EnuFrame& map_frame,
-                             const StructureAnchorOptions& options,
-                             AnchorDriveResult* out) {
-  const std::vector<Posed> posed = PosedAnchors(indices, pose_of, *out);
+void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out) {
+  const StructureAnchorOptions& options = run.options;
+  const VoStructure& vo = run.vo;
+  const std::vector<Posed> posed = PosedAnchors(run.indices, run.pose_of, *out);
   const std::vector<double> drift = DriftAcrossAnchors(posed, vo, *out, options);
   // The schedule's levels that free the scale: the drift changes the scale at the camera.
   std::vector<double> levels;
@@ -229,8 +218,7 @@ void ApplyDriftAcrossAnchors(const Drive& drive,
                                     vo.poses[static_cast<size_t>(posed[i].pose)].world_from_cam);
     restart.drift_per_m = drift[i];
     restart.levels_m = levels;
-    AnchorResult again =
-        AnchorOne(drive, indices[k], pose_of, vo, load, map_frame, options, &restart);
+    AnchorResult again = AnchorOne(run, run.indices[k], &restart);
     if (!again.has_pose) return;
     again.seconds += out->frames[k].seconds;
     out->frames[k] = again;
