@@ -316,6 +316,18 @@ int RunSynth(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   app.add_flag("--no-lidar", no_lidar, "Skip the LiDAR map");
+  LidarOptions& lidar = options.lidar_options;
+  app.add_option("--lidar-spacing", lidar.scan_spacing_m,
+                 "LiDAR map: distance between scans along the survey path, metres")
+      ->capture_default_str();
+  app.add_option("--lidar-rings", lidar.num_rings, "LiDAR map: the scanner's beams")
+      ->capture_default_str();
+  app.add_option("--lidar-fov", lidar.azimuth_fov_deg,
+                 "LiDAR map: horizontal field kept, degrees, centred on forward (360: all)")
+      ->capture_default_str();
+  app.add_option("--lidar-noise", lidar.range_noise_m,
+                 "LiDAR map: range noise, standard deviation, metres")
+      ->capture_default_str();
   bool query_only = false;
   app.add_flag("--query-only", query_only,
                "Write the query drive only (not the survey's frames): another query of a world "
