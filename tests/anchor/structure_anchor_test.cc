@@ -216,7 +216,9 @@ TEST(StructureAnchor, SiftStructureAlongTheVoPosesPlacesTheSyntheticQuery) {
   EXPECT_LE(with_sift.max_rotation_posed_deg, 0.25);
   EXPECT_LT(with_sift.max_rotation_posed_deg, with_klt.max_rotation_posed_deg);
   // An anchor the along-track profile calls ok (none is here) is right.
-  if (with_sift.ok > 0) EXPECT_LE(with_sift.max_horizontal_m, 0.1);
+  if (with_sift.ok > 0) {
+    EXPECT_LE(with_sift.max_horizontal_m, 0.1);
+  }
 }
 
 // The synthetic street's default 15 Hz query (`epiloc synth --length-m 50 --seed 3`: 165 frames,
