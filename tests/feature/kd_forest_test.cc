@@ -98,7 +98,9 @@ TEST_P(KdForestLeaves, ExhaustiveBudgetGivesTheExactNeighbours) {
       // Equal distances may come in either order.
       const bool tied = (i > 0 && truth.distances[i - 1] == truth.distances[i]) ||
                         truth.distances[i + 1] == truth.distances[i];
-      if (!tied) EXPECT_EQ(ids[q * k + i], truth.ids[i]) << "query " << q << " #" << i;
+      if (!tied) {
+        EXPECT_EQ(ids[q * k + i], truth.ids[i]) << "query " << q << " #" << i;
+      }
     }
   }
 }
