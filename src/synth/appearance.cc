@@ -117,7 +117,8 @@ void WriteAppearance(const std::string& out_dir,
   if (!file) Throw("{}: write failed", path);
 
   for (int d = 0; d < 2; ++d) {
-    if (scenes[d].objects) {
+    // A drive not written (the survey of `synth --query-only`) gets no moving-object list.
+    if (scenes[d].objects && fs::is_directory(out / names[d])) {
       scenes[d].objects->WriteCsv((out / names[d] / "moving_objects.csv").string(),
                                   frame_times_s[d]);
     }

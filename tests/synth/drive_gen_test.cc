@@ -197,6 +197,8 @@ TEST(GenerateSynthetic, QueryOnlyWritesTheSameQueryAndNoSurveyFrames) {
   const std::string full = TempDir("full"), query_only = TempDir("query_only");
   SynthOptions options = TinyOptions(7);
   options.lidar = false;
+  // With moving cars: the query's list is written, the survey's (no survey drive) is not.
+  options.appearance.moving.traffic = 2;
   const SynthSummary a = GenerateSynthetic(options, full);
   options.survey_frames = false;
   const SynthSummary b = GenerateSynthetic(options, query_only);
@@ -206,7 +208,8 @@ TEST(GenerateSynthetic, QueryOnlyWritesTheSameQueryAndNoSurveyFrames) {
   EXPECT_FALSE(fs::exists(fs::path(query_only) / "survey"));
   for (const std::string file :
        {"query/drive.json", "query/frames.csv", "query/gnss.csv", "query/ground_truth.csv",
-        "query/images/000000.png", "query/images/000003.png", "world.json"}) {
+        "query/images/000000.png", "query/images/000003.png", "world.json",
+        "query/moving_objects.csv"}) {
     ASSERT_TRUE(fs::exists(fs::path(query_only) / file)) << file;
     EXPECT_EQ(HashFile((fs::path(full) / file).string()),
               HashFile((fs::path(query_only) / file).string()))
