@@ -126,15 +126,25 @@ int Run(const Options& o) {
   double sum_stereo = 0.0, sum_truth = 0.0;
   std::printf("%7s %7s %10s %10s %8s %8s\n", "frame", "to", "stereo m", "truth m", "ratio",
               "inliers");
+  // The left features of a step's end are the next step's start: detected once.
+  std::optional<std::pair<size_t, Features>> last_left;
+  const auto left_features = [&](size_t index) {
+    if (!last_left || last_left->first != index) {
+      last_left.emplace(index, Detect(left, left.frames[index], *sift));
+    }
+    return last_left->second;
+  };
   for (size_t i = 0; i + o.step < left.frames.size(); i += o.step) {
     const FrameRecord& a = left.frames[i];
     const FrameRecord& b = left.frames[i + o.step];
     const auto ra = right_frames.find(a.frame);
     const auto ta = truth(left, a), tb = truth(left, b);
     if (ra == right_frames.end() || !ta || !tb) continue;
-    const Features fa = Detect(left, a, *sift);
+    const double truth_moved = (enu.ToEnu(tb->position) - enu.ToEnu(ta->position)).norm();
+    if (truth_moved < 0.5) continue;  // standing: no ratio to speak of
+    const Features fa = left_features(i);
     const Features fr = Detect(right, *ra->second, *sift);
-    const Features fb = Detect(left, b, *sift);
+    const Features fb = left_features(i + o.step);
     std::map<int, cv::Point3d> stereo;
     for (const auto& [qi, ti] : Match(fa, fr)) {
       const cv::Point2f pl = fa.keypoints[qi].pt, pr = fr.keypoints[ti].pt;
@@ -171,8 +181,6 @@ int Run(const Options& o) {
     cv::Rodrigues(rvec, r);
     const cv::Vec3d centre = -(r.t() * cv::Vec3d(tvec));
     const double moved = cv::norm(centre);
-    const double truth_moved = (enu.ToEnu(tb->position) - enu.ToEnu(ta->position)).norm();
-    if (truth_moved < 0.5) continue;  // standing: no ratio to speak of
     ratios.push_back(moved / truth_moved);
     sum_stereo += moved;
     sum_truth += truth_moved;
