@@ -61,6 +61,70 @@ bool Better(const StructureRegistration& a, const StructureRegistration& b) {
   return a.rms_m < b.rms_m;
 }
 
+// Least-squares slope of y over x; nullopt with fewer than four samples or an x spread below
+// min_spread.
+std::optional<double> Slope(const std::vector<Eigen::Vector2d>& xy, double min_spread) {
+  if (xy.size() < 4) return std::nullopt;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector2d& p : xy) mean += p;
+  mean /= static_cast<double>(xy.size());
+  double sxx = 0.0, sxy = 0.0, lo = xy.front().x(), hi = lo;
+  for (const Eigen::Vector2d& p : xy) {
+    sxx += (p.x() - mean.x()) * (p.x() - mean.x());
+    sxy += (p.x() - mean.x()) * (p.y() - mean.y());
+    lo = std::min(lo, p.x());
+    hi = std::max(hi, p.x());
+  }
+  if (hi - lo < min_spread || sxx <= 0.0) return std::nullopt;
+  return sxy / sxx;
+}
+
+// The seed turned to the road's grade. The seed holds camera k level, so on a grade the seeded
+// structure is tilted by the grade against the map (and by the camera's pitch on its mount, on
+// any road). The window's seeded camera centres give the track's slope along the heading; the
+// map's ground height beneath the same centres (GroundHeight) gives the road's. Beneath the
+// seeded track, not beneath the GNSS fixes: the track is the VO's shape moved by the window's
+// mean GNSS error, so its samples stay on one surface (road or pavement, parallel to it) where
+// fixes scattered by the GNSS noise fall on both sides of a kerb. The seed is turned about the
+// horizontal axis across the heading, through camera k, by the difference of the two angles.
+// Unchanged when fewer than four cameras have ground beneath them or they span less than 5 m
+// (a slope over a shorter base is the kerb's, not the road's).
+Similarity3 SeedGrade(const VoStructure& vo,
+                      const std::vector<int>& window,
+                      int k,
+                      const PointCloud& local,
+                      double heading_deg,
+                      const PriorOptions& prior,
+                      const Similarity3& seed) {
+  constexpr int kMaxSamples = 16;  // GroundHeight scans the local map once per sample
+  constexpr double kMinSpreadM = 5.0;
+  const double h = heading_deg * kDegToRad;
+  const Eigen::Vector3d along(std::sin(h), std::cos(h), 0.0);
+  const Eigen::Vector3d right(std::cos(h), -std::sin(h), 0.0);
+  const Eigen::Vector3d pivot = seed * vo.poses[k].world_from_cam.translation;
+  std::vector<Eigen::Vector2d> track, ground;
+  const size_t step = std::max<size_t>(1, (window.size() + kMaxSamples - 1) / kMaxSamples);
+  for (size_t i = 0; i < window.size(); i += step) {
+    const Eigen::Vector3d c = seed * vo.poses[window[i]].world_from_cam.translation;
+    const double s = (c - pivot).dot(along);
+    track.emplace_back(s, c.z());
+    if (const auto g = GroundHeight(local, c.head<2>(), prior)) ground.emplace_back(s, *g);
+  }
+  const auto track_slope = Slope(track, kMinSpreadM);
+  const auto ground_slope = Slope(ground, kMinSpreadM);
+  if (!track_slope || !ground_slope) return seed;
+  const double angle = std::atan(*ground_slope) - std::atan(*track_slope);
+  // A turn about `right` (along x up) by a positive angle lifts the road ahead.
+  const Eigen::Quaterniond turn(Eigen::AngleAxisd(angle, right));
+  Similarity3 out = seed;
+  out.rotation = (turn * seed.rotation).normalized();
+  out.translation = turn * (seed.translation - pivot) + pivot;
+  spdlog::debug("structure anchor: seed grade {:.2f} deg (road {:.2f}, track {:.2f})",
+                angle / kDegToRad, std::atan(*ground_slope) / kDegToRad,
+                std::atan(*track_slope) / kDegToRad);
+  return out;
+}
+
 }  // namespace
 
 void StructureAnchorOptions::Check() const {
@@ -295,6 +359,7 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
   const double camera_z = ground ? *ground + options.prior.camera_height_m : gnss_k->z();
   const Eigen::Vector3d seeded_centre = seed.scale * (seed.rotation * world_from_cam.translation);
   seed.translation = Eigen::Vector3d(offset.x(), offset.y(), camera_z - seeded_centre.z());
+  if (options.seed_grade) seed = SeedGrade(vo, window, k, local, heading, options.prior, seed);
   result.has_prior = true;
   result.prior.frame = record.frame;
   result.prior.timestamp_s = record.timestamp_s;

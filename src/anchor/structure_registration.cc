@@ -240,7 +240,7 @@ void StructureRegistrationOptions::Check() const {
                "structure registration: max_linearity must be in (0, 1]");
   EPILOC_CHECK(search_along_m >= 0.0 && search_lateral_m >= 0.0 && search_step_m >= 0.0 &&
                    search_yaw_deg >= 0.0 && search_yaw_step_deg > 0.0 && search_points >= 1 &&
-                   search_truncation_m > 0.0,
+                   search_truncation_m > 0.0 && search_height_m >= 0.0,
                "structure registration: invalid seed search ranges");
   EPILOC_CHECK(min_scale_distance_m > 0.0,
                "structure registration: min_scale_distance_m must be > 0");
@@ -281,9 +281,14 @@ StructureMap::StructureMap(const PointCloud& cloud, const StructureRegistrationO
   impl_->max_planarity = options.max_planarity;
   impl_->max_linearity = options.max_linearity;
   impl_->cell_m = 0.5 * options.search_truncation_m;
-  impl_->occupied.reserve(impl_->points.size());
-  for (const Eigen::Vector3f& p : impl_->points)
-    impl_->occupied.insert(impl_->Cell(p.cast<double>()));
+  const int layers = static_cast<int>(std::ceil(options.search_height_m / impl_->cell_m - 1e-9));
+  impl_->occupied.reserve(impl_->points.size() * static_cast<size_t>(2 * layers + 1));
+  for (const Eigen::Vector3f& p : impl_->points) {
+    for (int dz = -layers; dz <= layers; ++dz) {
+      impl_->occupied.insert(
+          impl_->Cell(p.cast<double>() + Eigen::Vector3d(0.0, 0.0, dz * impl_->cell_m)));
+    }
+  }
   impl_->projectors.assign(impl_->points.size(), Eigen::Matrix3f::Identity());
   impl_->has_projector.assign(impl_->points.size(), 0);
   if (impl_->points.empty()) return;

@@ -129,6 +129,31 @@ TEST(StructureRegistration, RecoversExactSimilarity) {
   EXPECT_LT(r.along_sigma_m, 1e-6);
 }
 
+// The seed search's score: a point counts where the map has a point in its cell of side
+// search_truncation_m / 2, or (search_height_m) in the cells above and below it, never beside it.
+TEST(StructureRegistration, OccupancyReachesTheSearchHeightAboveAndBelowOnly) {
+  std::vector<Eigen::Vector3d> ground;
+  for (int i = 0; i < 20; ++i) {
+    for (int j = 0; j < 20; ++j) ground.emplace_back(0.05 * i + 0.01, 0.05 * j + 0.01, 0.1);
+  }
+  StructureRegistrationOptions options;  // cells of 0.25 m, 0.25 m above and below
+  ASSERT_DOUBLE_EQ(0.5 * options.search_truncation_m, 0.25);
+  const StructureMap map(ToCloud(ground), options);
+  EXPECT_TRUE(map.Occupied({0.5, 0.5, 0.2}));
+  EXPECT_TRUE(map.Occupied({0.5, 0.5, 0.4}));   // the cell above
+  EXPECT_TRUE(map.Occupied({0.5, 0.5, -0.2}));  // the cell below
+  EXPECT_FALSE(map.Occupied({0.5, 0.5, 0.55}));
+  EXPECT_FALSE(map.Occupied({0.5, 0.5, -0.3}));
+  EXPECT_FALSE(map.Occupied({1.05, 0.5, 0.1}));  // beside
+  options.search_height_m = 0.0;
+  const StructureMap exact(ToCloud(ground), options);
+  EXPECT_TRUE(exact.Occupied({0.5, 0.5, 0.2}));
+  EXPECT_FALSE(exact.Occupied({0.5, 0.5, 0.4}));
+  EXPECT_FALSE(exact.Occupied({0.5, 0.5, -0.2}));
+  options.search_height_m = -0.1;
+  EXPECT_THROW(options.Check(), Error);
+}
+
 // Independent samples of the surfaces with 2 cm noise, 20 % outliers, a car that moved (in the
 // structure 3 m from where the map has it), a car the map has and the structure does not; seed
 // 3 m and 5 degrees off, scale 8 % off.

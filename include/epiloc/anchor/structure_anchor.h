@@ -69,6 +69,11 @@ struct StructureAnchorOptions {
   // The VO's scale drift (at most registration.max_scale_drift_per_m).
   ScaleDriftModel scale_drift = ScaleDriftModel::kAcrossAnchors;
   double window_m = 40.0;                     // road length (GNSS) of the keyframe window, metres
+  // The seed holds the frame's camera level; on a grade (or with a camera pitched on its mount)
+  // that tilts the structure against the map. With this, the seed is turned about the horizontal
+  // axis across the road so that the window's cameras climb as the map's ground beneath them
+  // does (SeedGrade in the source).
+  bool seed_grade = true;
   int min_observations = 3;                   // VO points seen by fewer keyframes are not used
   double max_point_range_m = 35.0;  // points farther from every window camera are not used
   int max_points = 4000;            // at most this many points (evenly subsampled)

@@ -79,6 +79,12 @@ struct StructureRegistrationOptions {
   double search_yaw_step_deg = 1.5;   // ... in steps of this
   int search_points = 400;            // ... scoring this many points (evenly subsampled)
   double search_truncation_m = 0.5;   // ... by the share of them in map cells of half this side
+  // ... and the cells this far above and below each map point's (rounded up to whole cells): the
+  // search moves the seed horizontally only, and its height (the ground beneath the GNSS plus a
+  // nominal camera height) is off by decimetres (another vehicle's mount; on a grade, the ground
+  // percentile's bias). On a grade, cells of exact height would let the road's ground points
+  // trade such a height error for an along-road move (1 cm for 0.6 m on a 1 degree road).
+  double search_height_m = 0.25;
   // Scale drift (StructureDrift::estimate): estimated at the levels that free the scale, at most
   // this relative change of scale per metre of road (0.005: 20 % over a 40 m window, beyond any
   // usable monocular VO).
@@ -173,7 +179,8 @@ class StructureMap {
   // The same for many points at once (faster).
   std::vector<int> Nearest(const std::vector<Eigen::Vector3d>& x, double max_distance_m) const;
   // Whether the map has a point in the cube of side search_truncation_m / 2 (a grid aligned
-  // with the map frame's axes) that holds `x`: the seed search's score.
+  // with the map frame's axes) that holds `x`, or in the cubes within search_height_m above or
+  // below it: the seed search's score.
   bool Occupied(const Eigen::Vector3d& x) const;
   const Eigen::Vector3f& Point(int index) const;
   // Projector of the distance to the map's surface at point `index` (see the top of the file):
