@@ -242,6 +242,7 @@ void StructureRegistrationOptions::Check() const {
                    search_yaw_deg >= 0.0 && search_yaw_step_deg > 0.0 && search_points >= 1 &&
                    search_truncation_m > 0.0 && search_height_m >= 0.0,
                "structure registration: invalid seed search ranges");
+  EPILOC_CHECK(profile_moves >= 0, "structure registration: profile_moves must be >= 0");
   EPILOC_CHECK(min_scale_distance_m > 0.0,
                "structure registration: min_scale_distance_m must be > 0");
   EPILOC_CHECK(max_scale_drift_per_m >= 0.0,
@@ -536,6 +537,8 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
   const std::vector<uint8_t> at_fit = on_surface(0.0);
   result.along_points_on_surface =
       static_cast<int>(std::count(at_fit.begin(), at_fit.end(), uint8_t{1}));
+  double better_move_m = 0.0;
+  double better_margin = 0.0;
   for (int k = 1; k * finest <= reach_m + 1e-9; ++k) {
     for (const int sign : {-1, 1}) {
       const std::vector<uint8_t> at_move = on_surface(sign * k * finest);
@@ -544,12 +547,47 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
         lost += at_fit[i] && !at_move[i] ? 1 : 0;
         gained += !at_fit[i] && at_move[i] ? 1 : 0;
       }
-      const bool tied =
-          lost - gained < 2.0 * std::sqrt(static_cast<double>(std::max(lost + gained, 1)));
+      const double deviation = std::sqrt(static_cast<double>(std::max(lost + gained, 1)));
+      const bool tied = lost - gained < 2.0 * deviation;
       if (tied) result.along_ambiguity_m = k * finest;
+      // A move that puts significantly more points on the surface than it takes off.
+      const double margin = (gained - lost) / deviation;
+      if (margin > 2.0 && margin > better_margin) {
+        better_margin = margin;
+        better_move_m = sign * k * finest;
+      }
     }
   }
   result.along_sigma_m = std::max(result.along_sigma_m, 0.5 * result.along_ambiguity_m);
+  if (better_move_m != 0.0 && options.profile_moves > 0) {
+    // The fit is not where its own structure is best placed along the road: registered again
+    // from there with the levels that free the scale, no search, and kept if it ends with more
+    // inliers.
+    StructureRegistrationOptions again = options;
+    again.search_step_m = 0.0;
+    again.profile_moves = options.profile_moves - 1;
+    again.max_distances_m.clear();
+    for (const double d : options.max_distances_m) {
+      if (d <= options.min_scale_distance_m) again.max_distances_m.push_back(d);
+    }
+    if (again.max_distances_m.empty()) again.max_distances_m.push_back(finest);
+    Similarity3 start = sim;
+    start.translation += better_move_m * u;
+    StructureDrift moved_drift;
+    if (drift) {
+      moved_drift = *drift;
+      moved_drift.per_m = result.scale_drift_per_m;
+    }
+    StructureRegistration moved =
+        RegisterStructure(points, map, start, direction, again, drift ? &moved_drift : nullptr);
+    if (moved.success && moved.num_inliers > result.num_inliers &&
+        moved.inlier_share >= options.min_inlier_share) {
+      moved.iterations += result.iterations;
+      moved.search_offset_m = result.search_offset_m;
+      moved.search_yaw_deg = result.search_yaw_deg;
+      return moved;
+    }
+  }
   if (result.inlier_share < options.min_inlier_share) {
     result.message = fmt::format("inlier share {:.2f} below {:.2f}", result.inlier_share,
                                  options.min_inlier_share);

@@ -264,6 +264,44 @@ TEST(StructureRegistration, AFewPointsFacingAlongTheRoadFixIt) {
   EXPECT_LT(r.along_sigma_m, 0.01);
 }
 
+// A plain street with a row of identical bollards every 6 m and one parked car: a fit started a
+// period off (fine levels, no search) stays there, its bollards on the map's. The along-road
+// profile sees the move that puts the car on the map's car with the bollards still on theirs,
+// and the registration goes again from there (profile_moves).
+TEST(StructureRegistration, TheProfileMovesAFitAPeriodOffToWhereMorePointsLie) {
+  Street street;
+  street.AddRect({-30, -7, 0}, {60, 0, 0}, {0, 14, 0}, 0.1);
+  street.AddRect({-30, -7, 0}, {60, 0, 0}, {0, 0, 6}, 0.1);
+  street.AddRect({-30, 7, 0}, {60, 0, 0}, {0, 0, 6}, 0.1);
+  for (double x = -30; x < 30; x += 6.0) street.AddBox({x, 5.0, 0}, {1.0, 1.0, 1.2}, 0.1);
+  street.AddBox({0.5, -5.0, 0}, {4.2, 1.8, 1.5}, 0.1);
+  const Similarity3 truth = MakeSimilarity(2.0, 10.0, 0.0, {1.0, 2.0, 0.0});
+  std::vector<Eigen::Vector3d> structure;
+  for (size_t i = 0; i < street.points.size(); i += 3) {
+    if (std::abs(street.points[i].x()) < 9) structure.push_back(truth.Inverse() * street.points[i]);
+  }
+  StructureRegistrationOptions options;
+  options.search_step_m = 0.0;
+  options.max_distances_m = {0.5, 0.3};
+  StructureMap map(ToCloud(street.points), options);
+  const Similarity3 start = Perturb(truth, {6.0, 0.0, 0.0}, 0.0, 1.0);
+  options.profile_moves = 0;
+  const StructureRegistration stays =
+      RegisterStructure(structure, map, start, Eigen::Vector3d::UnitX(), options);
+  ASSERT_TRUE(stays.success) << stays.message;
+  EXPECT_NEAR((stays.map_from_world.translation - truth.translation).norm(), 6.0, 0.05);
+  options.profile_moves = 1;
+  const StructureRegistration moved =
+      RegisterStructure(structure, map, start, Eigen::Vector3d::UnitX(), options);
+  ASSERT_TRUE(moved.success) << moved.message;
+  EXPECT_LT((moved.map_from_world.translation - truth.translation).norm(), 0.01);
+  EXPECT_LT(RotationErrorDeg(moved.map_from_world, truth), 0.01);
+  EXPECT_GT(moved.num_inliers, stays.num_inliers);
+  EXPECT_GT(moved.iterations, stays.iterations);
+  options.profile_moves = -1;
+  EXPECT_THROW(options.Check(), Error);
+}
+
 TEST(StructureRegistration, TooFewPointsIsAValue) {
   Street street = MakeStreet(0.5, false);
   StructureRegistrationOptions options;

@@ -89,6 +89,11 @@ struct StructureRegistrationOptions {
   // this relative change of scale per metre of road (0.005: 20 % over a 40 m window, beyond any
   // usable monocular VO).
   double max_scale_drift_per_m = 0.005;
+  // The along-road profile (along_ambiguity_m) also finds moves that put significantly more
+  // points on the map's surfaces than they take off (gained - lost > 2 sqrt(lost + gained)):
+  // the fit is then registered again from the best such move (the levels that free the scale,
+  // no search) and the result kept when it has more inliers; at most this many times in a row.
+  int profile_moves = 2;
   double min_inlier_share = 0.0;      // registration fails below this share (checks: caller)
   int min_points = 20;                // fewer points: no registration
 
