@@ -446,6 +446,15 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
           max_distance <= options.tukey_max_distance_m ? RobustLoss::kTukey : RobustLoss::kHuber;
       const bool free_scale = max_distance <= options.min_scale_distance_m;
       Accumulate(pairs, centre, loss_scale, loss, free_scale, free_scale && with_drift, &h, &g);
+      if (options.hold_tilt_coarse && max_distance > options.tukey_max_distance_m) {
+        // Turns about the map's horizontal axes: the tilt.
+        for (const int held : {0, 1}) {
+          h.row(held).setZero();
+          h.col(held).setZero();
+          h(held, held) = 1.0;
+          g(held) = 0.0;
+        }
+      }
       // A little damping keeps directions the structure does not constrain where they are.
       h.diagonal() += 1e-6 * (h.diagonal().maxCoeff() + 1.0) * Vector8d::Ones();
       const Vector8d step = h.ldlt().solve(-g);

@@ -131,19 +131,14 @@ TEST(StructureAnchor, AnchorsSyntheticQueryFromItsOwnStructure) {
   // chance; the consensus of neighbouring anchors (StructureAnchorOptions::consensus_radius_m)
   // pulls those off the majority back (0.2-2.3 m off before it; 0.72 m at most with it, 1.33 m
   // with the drift pass, the last anchor, sigma 3.75 m). The anchors say so: along_sigma_m from
-  // that profile, and all are rejected as weak along the road. Since the seed follows the road's
-  // grade (2026-11-28; on this flat street it turns by the camera's +-0.4 degree pitch against
-  // its track) the windows land elsewhere: up to 3.05 m off, and that anchor claims 1.05 m, 2.9
-  // sigma. There the structure prefers the wrong place (more points on the map's surfaces than
-  // at the truth), which no profile about the fit shows. So: within 2 sigma but for one of them,
-  // and that one within 3.
+  // that profile, and all are rejected as weak along the road. (2026-11-28: with the seed
+  // turned to the road's grade, on this flat street by the camera's +-0.4 degree pitch against
+  // its track, one anchor landed 3.05 m off claiming 1.05 m; with the tilt held at the coarse
+  // levels too, the worst is 2.04 m off claiming 2.55 m.)
   EXPECT_EQ(e.posed, e.total);
-  int beyond_2_sigma = 0;
   for (size_t i = 0; i < e.along_m.size(); ++i) {
-    beyond_2_sigma += std::abs(e.along_m[i]) > 2.0 * e.along_sigma_m[i] + 0.1 ? 1 : 0;
-    EXPECT_LE(std::abs(e.along_m[i]), 3.0 * e.along_sigma_m[i] + 0.1) << "posed anchor " << i;
+    EXPECT_LE(std::abs(e.along_m[i]), 2.0 * e.along_sigma_m[i] + 0.1) << "posed anchor " << i;
   }
-  EXPECT_LE(beyond_2_sigma, 1);
   // An anchor called ok is right (none is here); across the road and in rotation the structure
   // does place the camera (reached: 0.38 m, 0.94 deg, tied to where it lands along the road).
   if (e.ok > 0) {
@@ -308,11 +303,13 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   // median 0.049 m, max 0.59 m, rotation max 0.42 deg, none ok. Since the seed follows the
   // road's grade (2026-11-28): 18 ok, within 0.053 m and 0.113 deg; median 0.037 m, max 0.50 m
   // (one rejected anchor, frame 64, landed 0.5 m back; the CLI: 23 ok, 0.037 / 0.245 m); with
-  // the profile moves too: 25 ok within 0.055 m and 0.113 deg, the same median and max. Bound:
-  // the consensus radius, beyond which an anchor is registered again from its neighbours.
+  // the profile moves too: 25 ok within 0.055 m and 0.113 deg, the same median and max; and with
+  // the tilt held at the coarse levels (StructureRegistrationOptions::hold_tilt_coarse): 24 ok
+  // within 0.056 m and 0.088 deg; every anchor median 0.042 m, max 0.084 m, rotation median
+  // 0.065 deg, max 0.103 deg.
   EXPECT_LE(Median(e.posed_horizontal_m), 0.05);
   EXPECT_LE(Median(e.posed_rotation_deg), 0.1);
-  EXPECT_LE(max_h, QueryOptions().consensus_radius_m);
+  EXPECT_LE(max_h, 0.25);
   EXPECT_LE(max_r, 0.2);
   // What is called ok is right, and so is a good share of the anchors.
   EXPECT_GE(e.ok * 5, e.total * 2);
@@ -341,15 +338,18 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   // rotation median 0.079 deg, max 0.113 deg (the rotation's worst just misses 0.1 deg). Since
   // the profile moves (StructureRegistrationOptions::profile_moves, 2026-11-28), in process: 39
   // ok, median 0.029 m, max 0.0505 m: the position target just missed by one anchor (the CLI:
-  // 0.030 / 0.045 m).
-  EXPECT_LE(dense_max_h, 0.06);
+  // 0.030 / 0.045 m); with the tilt held at the coarse levels: 38 ok, median 0.029 m, max
+  // 0.044 m, rotation max 0.109 deg.
+  EXPECT_LE(dense_max_h, 0.05);
   EXPECT_LE(Median(d.posed_rotation_deg), 0.1);
   EXPECT_LE(dense_max_r, 0.15);
   EXPECT_GE(d.ok * 5, d.total * 4);
 
   // The same street on a 2 degree grade (3.5 %), the same frames and structure. Measured
   // (2026-11-28): 21 of 42 ok, within 0.063 m and 0.094 deg; every anchor: median 0.055 m, max
-  // 0.51 m, rotation median 0.067 deg, max 0.17 deg (with the profile moves: 22 ok, the same).
+  // 0.51 m, rotation median 0.067 deg, max 0.17 deg (with the profile moves: 22 ok, the same;
+  // with the tilt held at the coarse levels: 27 ok within 0.072 m and 0.101 deg, every anchor
+  // median 0.053 m, max 0.096 m, rotation max 0.164 deg).
   // Without the seed's grade (StructureAnchorOptions::seed_grade) and the seed search's height
   // tolerance (StructureRegistrationOptions::search_height_m), as before: 5 ok (within 0.06 m),
   // every anchor median 1.71 m, max 8.07 m.
@@ -365,7 +365,7 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   PrintPosed("2 deg grade", g);
   EXPECT_LE(Median(g.posed_horizontal_m), 0.08);
   EXPECT_LE(Median(g.posed_rotation_deg), 0.1);
-  EXPECT_LE(Max(g.posed_horizontal_m), QueryOptions().consensus_radius_m);
+  EXPECT_LE(Max(g.posed_horizontal_m), 0.25);
   EXPECT_LE(Max(g.posed_rotation_deg), 0.25);
   EXPECT_GE(g.ok * 5, g.total);
   EXPECT_LE(g.max_horizontal_m, 0.1);

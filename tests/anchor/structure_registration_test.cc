@@ -302,6 +302,45 @@ TEST(StructureRegistration, TheProfileMovesAFitAPeriodOffToWhereMorePointsLie) {
   EXPECT_THROW(options.Check(), Error);
 }
 
+// The tilt is held at the Huber levels only: from a seed pitched 1 degree, levels all coarser
+// than tukey_max_distance_m keep that pitch exactly, and the default levels end at the truth.
+TEST(StructureRegistration, TiltIsHeldAtTheCoarseLevelsAndFreedAtTheFineOnes) {
+  const Street street = MakeStreet(0.2, true);
+  const Similarity3 truth = MakeSimilarity(2.0, 20.0, 0.0, {3.0, -1.0, 0.5});
+  std::vector<Eigen::Vector3d> structure;
+  for (size_t i = 0; i < street.points.size(); i += 5) {
+    structure.push_back(truth.Inverse() * street.points[i]);
+  }
+  Similarity3 seed = truth;
+  seed.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(1.0 * kDegToRad, Eigen::Vector3d::UnitY())) *
+                  truth.rotation;
+  StructureRegistrationOptions options;
+  options.search_step_m = 0.0;
+  options.max_distances_m = {4.0, 2.0, 1.0};
+  StructureMap map(ToCloud(street.points), options);
+  const auto tilt_deg = [](const Similarity3& s) {
+    const Eigen::Vector3d up = s.rotation * Eigen::Vector3d::UnitZ();
+    return std::acos(std::clamp(up.z(), -1.0, 1.0)) / kDegToRad;
+  };
+  ASSERT_NEAR(tilt_deg(seed), 1.0, 1e-9);
+  const StructureRegistration held =
+      RegisterStructure(structure, map, seed, Eigen::Vector3d::UnitX(), options);
+  ASSERT_TRUE(held.success) << held.message;
+  EXPECT_NEAR(tilt_deg(held.map_from_world), 1.0, 1e-6);
+  options.hold_tilt_coarse = false;
+  const StructureRegistration free =
+      RegisterStructure(structure, map, seed, Eigen::Vector3d::UnitX(), options);
+  ASSERT_TRUE(free.success) << free.message;
+  EXPECT_LT(tilt_deg(free.map_from_world), 0.5);
+  options = StructureRegistrationOptions();
+  options.search_step_m = 0.0;
+  const StructureRegistration fine =
+      RegisterStructure(structure, map, seed, Eigen::Vector3d::UnitX(), options);
+  ASSERT_TRUE(fine.success) << fine.message;
+  EXPECT_LT(RotationErrorDeg(fine.map_from_world, truth), 0.01);
+  EXPECT_LT((fine.map_from_world.translation - truth.translation).norm(), 0.01);
+}
+
 TEST(StructureRegistration, TooFewPointsIsAValue) {
   Street street = MakeStreet(0.5, false);
   StructureRegistrationOptions options;
