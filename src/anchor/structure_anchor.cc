@@ -61,24 +61,6 @@ bool Better(const StructureRegistration& a, const StructureRegistration& b) {
   return a.rms_m < b.rms_m;
 }
 
-// Least-squares slope of y over x; nullopt with fewer than four samples or an x spread below
-// min_spread.
-std::optional<double> Slope(const std::vector<Eigen::Vector2d>& xy, double min_spread) {
-  if (xy.size() < 4) return std::nullopt;
-  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-  for (const Eigen::Vector2d& p : xy) mean += p;
-  mean /= static_cast<double>(xy.size());
-  double sxx = 0.0, sxy = 0.0, lo = xy.front().x(), hi = lo;
-  for (const Eigen::Vector2d& p : xy) {
-    sxx += (p.x() - mean.x()) * (p.x() - mean.x());
-    sxy += (p.x() - mean.x()) * (p.y() - mean.y());
-    lo = std::min(lo, p.x());
-    hi = std::max(hi, p.x());
-  }
-  if (hi - lo < min_spread || sxx <= 0.0) return std::nullopt;
-  return sxy / sxx;
-}
-
 // The seed turned to the road's grade. The seed holds camera k level, so on a grade the seeded
 // structure is tilted by the grade against the map (and by the camera's pitch on its mount, on
 // any road). The window's seeded camera centres give the track's slope along the heading; the
@@ -93,14 +75,12 @@ Similarity3 SeedGrade(const VoStructure& vo,
                       const std::vector<int>& window,
                       int k,
                       const PointCloud& local,
-                      double heading_deg,
+                      const Eigen::Vector3d& along,
+                      const Eigen::Vector3d& right,
                       const PriorOptions& prior,
                       const Similarity3& seed) {
   constexpr int kMaxSamples = 16;  // GroundHeight scans the local map once per sample
   constexpr double kMinSpreadM = 5.0;
-  const double h = heading_deg * kDegToRad;
-  const Eigen::Vector3d along(std::sin(h), std::cos(h), 0.0);
-  const Eigen::Vector3d right(std::cos(h), -std::sin(h), 0.0);
   const Eigen::Vector3d pivot = seed * vo.poses[k].world_from_cam.translation;
   std::vector<Eigen::Vector2d> track, ground;
   const size_t step = std::max<size_t>(1, (window.size() + kMaxSamples - 1) / kMaxSamples);
@@ -110,8 +90,8 @@ Similarity3 SeedGrade(const VoStructure& vo,
     track.emplace_back(s, c.z());
     if (const auto g = GroundHeight(local, c.head<2>(), prior)) ground.emplace_back(s, *g);
   }
-  const auto track_slope = Slope(track, kMinSpreadM);
-  const auto ground_slope = Slope(ground, kMinSpreadM);
+  const auto track_slope = structure_internal::LeastSquaresSlope(track, 4, kMinSpreadM);
+  const auto ground_slope = structure_internal::LeastSquaresSlope(ground, 4, kMinSpreadM);
   if (!track_slope || !ground_slope) return seed;
   const double angle = std::atan(*ground_slope) - std::atan(*track_slope);
   // A turn about `right` (along x up) by a positive angle lifts the road ahead.
@@ -359,7 +339,11 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
   const double camera_z = ground ? *ground + options.prior.camera_height_m : gnss_k->z();
   const Eigen::Vector3d seeded_centre = seed.scale * (seed.rotation * world_from_cam.translation);
   seed.translation = Eigen::Vector3d(offset.x(), offset.y(), camera_z - seeded_centre.z());
-  if (options.seed_grade) seed = SeedGrade(vo, window, k, local, heading, options.prior, seed);
+  // The road's directions at the prior heading: along it and to its right, horizontal.
+  const double h = heading * kDegToRad;
+  const Eigen::Vector3d along(std::sin(h), std::cos(h), 0.0);
+  const Eigen::Vector3d right(std::cos(h), -std::sin(h), 0.0);
+  if (options.seed_grade) seed = SeedGrade(vo, window, k, local, along, right, options.prior, seed);
   result.has_prior = true;
   result.prior.frame = record.frame;
   result.prior.timestamp_s = record.timestamp_s;
@@ -456,9 +440,6 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
     return finish(result);
   }
   StructureMap structure_map(cropped, options.registration);
-  const double h = heading * kDegToRad;
-  const Eigen::Vector3d along(std::sin(h), std::cos(h), 0.0);
-  const Eigen::Vector3d right(std::cos(h), -std::sin(h), 0.0);
   StructureRegistration best;
   bool have = false;
   std::vector<Eigen::Vector2d> offsets = {Eigen::Vector2d::Zero()};
@@ -578,6 +559,28 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
 }
 
 // The similarity VO world -> map an anchored frame's pose implies.
+std::optional<double> LeastSquaresSlope(const std::vector<Eigen::Vector2d>& xy,
+                                        size_t min_samples,
+                                        double min_spread) {
+  if (xy.empty() || xy.size() < min_samples) return std::nullopt;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  double lo = INFINITY, hi = -INFINITY;
+  for (const Eigen::Vector2d& p : xy) {
+    mean += p;
+    lo = std::min(lo, p.x());
+    hi = std::max(hi, p.x());
+  }
+  mean /= static_cast<double>(xy.size());
+  if (hi - lo < min_spread) return std::nullopt;
+  double sxx = 0.0, sxy = 0.0;
+  for (const Eigen::Vector2d& p : xy) {
+    sxx += (p.x() - mean.x()) * (p.x() - mean.x());
+    sxy += (p.x() - mean.x()) * (p.y() - mean.y());
+  }
+  if (sxx <= 0.0) return std::nullopt;
+  return sxy / sxx;
+}
+
 Similarity3 ImpliedSimilarity(const AnchorResult& a, const Rigid3d& world_from_cam) {
   Similarity3 s;
   s.scale = a.scale_m_per_unit;

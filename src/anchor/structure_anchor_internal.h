@@ -3,6 +3,7 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -45,6 +46,12 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
 
 // The similarity VO world -> map an anchored frame's pose implies.
 Similarity3 ImpliedSimilarity(const AnchorResult& a, const Rigid3d& world_from_cam);
+
+// Least-squares slope of y over x of `xy`; nullopt with fewer than `min_samples` points or an x
+// spread below `min_spread`.
+std::optional<double> LeastSquaresSlope(const std::vector<Eigen::Vector2d>& xy,
+                                        size_t min_samples,
+                                        double min_spread);
 
 // The drift pass (ScaleDriftModel::kAcrossAnchors) over `out` (one result per run.indices): the
 // VO's scale drift at each posed anchor from the scales of the anchors around it, then each

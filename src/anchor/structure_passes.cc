@@ -110,22 +110,9 @@ std::vector<double> DriftAcrossAnchors(const std::vector<Posed>& posed,
           a.scale_m_per_unit;
       if (std::abs(x) <= 0.5 * options.window_m) xy.push_back({x, std::log(b.scale_m_per_unit)});
     }
-    if (xy.size() < 3) continue;
-    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    double lo = INFINITY, hi = -INFINITY;
-    for (const Eigen::Vector2d& v : xy) {
-      mean += v;
-      lo = std::min(lo, v.x());
-      hi = std::max(hi, v.x());
+    if (const auto slope = LeastSquaresSlope(xy, 3, 0.25 * options.window_m)) {
+      drift[i] = std::clamp(*slope, -limit, limit);
     }
-    mean /= static_cast<double>(xy.size());
-    if (hi - lo < 0.25 * options.window_m) continue;
-    double sxx = 0.0, sxy = 0.0;
-    for (const Eigen::Vector2d& v : xy) {
-      sxx += (v.x() - mean.x()) * (v.x() - mean.x());
-      sxy += (v.x() - mean.x()) * (v.y() - mean.y());
-    }
-    drift[i] = std::clamp(sxy / sxx, -limit, limit);
   }
   return drift;
 }
