@@ -449,10 +449,25 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
     StructureRegistrationOptions fine = options.registration;
     fine.search_step_m = 0.0;
     fine.max_distances_m = restart->levels_m;
+    fine.hold_rotation = restart->hold_rotation;
+    if (restart->hold_rotation) fine.profile_moves = 0;
     // Under a drift the structure changes shape: the start is the similarity that takes the
     // warped points where `given` takes the points (least squares).
-    best = RegisterStructure(points, structure_map,
-                             drift ? Rewarped(points, *drift, *given) : *given, along, fine, drift);
+    Similarity3 start = drift ? Rewarped(points, *drift, *given) : *given;
+    if (restart->hold_rotation && drift) {
+      // The same with the rotation held: scale and translation only.
+      Eigen::Vector3d from = Eigen::Vector3d::Zero(), to = Eigen::Vector3d::Zero();
+      const double kappa = drift->per_m * given->scale;
+      for (size_t i = 0; i < points.size(); ++i) {
+        from += points[i] + kappa * drift->directions[i];
+        to += *given * points[i];
+      }
+      from /= static_cast<double>(points.size());
+      to /= static_cast<double>(points.size());
+      start.rotation = given->rotation;
+      start.translation = to - start.scale * (start.rotation * from);
+    }
+    best = RegisterStructure(points, structure_map, start, along, fine, drift);
     have = true;
     offsets.clear();
   }
@@ -690,9 +705,9 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
   if (options.scale_drift == ScaleDriftModel::kAcrossAnchors) {
     structure_internal::ApplyDriftAcrossAnchors(run, &out);
   }
-  if (options.consensus_radius_m > 0.0) {
-    structure_internal::ApplyConsensus(run, &out);
-  }
+  if (options.consensus_radius_m > 0.0) structure_internal::ApplyConsensus(run, &out);
+  if (options.rotation_consensus) structure_internal::ApplyRotationConsensus(run, &out);
+  if (options.consensus_radius_m > 0.0) structure_internal::GateByNeighbours(run, &out);
   for (const AnchorResult& r : out.frames) out.num_ok += r.status == AnchorStatus::kOk ? 1 : 0;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;

@@ -25,6 +25,7 @@ struct Restart {
   Similarity3 sim;
   double drift_per_m = 0.0;
   std::vector<double> levels_m;
+  bool hold_rotation = false;
 };
 
 // What anchoring a drive's frames shares: the drive, its frames to anchor (`indices` into
@@ -58,8 +59,13 @@ std::optional<double> LeastSquaresSlope(const std::vector<Eigen::Vector2d>& xy,
 // registered again from its own fit with its structure warped by that drift.
 void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out);
 
-// The consensus pass (StructureAnchorOptions::consensus_radius_m; structure_passes.cc).
+// The passes after the drift pass, in this order (structure_passes.cc): the consensus pass
+// (StructureAnchorOptions::consensus_radius_m), the rotation consensus
+// (StructureAnchorOptions::rotation_consensus), then the neighbours' check of the ok anchors
+// (also consensus_radius_m).
 void ApplyConsensus(const DriveAnchoring& run, AnchorDriveResult* out);
+void ApplyRotationConsensus(const DriveAnchoring& run, AnchorDriveResult* out);
+void GateByNeighbours(const DriveAnchoring& run, AnchorDriveResult* out);
 
 }  // namespace structure_internal
 }  // namespace epiloc

@@ -17,6 +17,9 @@ namespace epiloc {
 namespace structure_internal {
 namespace {
 
+// The consensus pass's note in the message of an anchor it registered again.
+constexpr const char* kConsensusNote = "re-registered from the consensus of its neighbours";
+
 // A posed anchor of the consensus pass.
 struct Posed {
   size_t k;  // index into AnchorDriveResult::frames
@@ -51,6 +54,16 @@ std::optional<Placements> PlaceByNeighbours(const std::vector<PlacedAnchor>& anc
   std::nth_element(ys.begin(), ys.begin() + ys.size() / 2, ys.end());
   p.median = Eigen::Vector2d(xs[xs.size() / 2], ys[ys.size() / 2]);
   return p;
+}
+
+// The schedule's levels that free the scale (the finest level when none does).
+std::vector<double> ScaleLevels(const StructureRegistrationOptions& registration) {
+  std::vector<double> levels;
+  for (const double d : registration.max_distances_m) {
+    if (d <= registration.min_scale_distance_m) levels.push_back(d);
+  }
+  if (levels.empty()) levels.push_back(registration.max_distances_m.back());
+  return levels;
 }
 
 // The anchors with a pose and a VO pose, in frame order.
@@ -123,8 +136,7 @@ std::vector<double> DriftAcrossAnchors(const std::vector<Posed>& posed,
 // placed by the similarities of the posed anchors around it (same segment, within half the window
 // along the road); where most of them agree (within the radius of their median, at least three)
 // and the anchor's own fit does not, it is registered again from the agreeing similarity nearest
-// the median, with the fine levels only. Then an ok anchor whose neighbours' placements (itself
-// left out) have their median beyond 2 max_along_sigma_m of it is not ok.
+// the median, with the fine levels only.
 void ApplyConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
   const StructureAnchorOptions& options = run.options;
   const VoStructure& vo = run.vo;
@@ -159,12 +171,20 @@ void ApplyConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
     AnchorResult again = AnchorOne(run, run.indices[k], &restart);
     if (!again.has_pose) return;
     again.seconds += out->frames[k].seconds;
-    const std::string note = "re-registered from the consensus of its neighbours";
+    const std::string note = kConsensusNote;
     again.message = again.message.empty() ? note : again.message + "; " + note;
     out->frames[k] = again;
   });
   spdlog::debug("structure anchors: {} of {} posed re-registered from their neighbours' consensus",
                 redo.size(), posed.size());
+}
+
+// An ok anchor whose neighbours' placements (itself left out) have their median beyond
+// 2 max_along_sigma_m of it is not ok. Last: it judges the anchors as they are written.
+void GateByNeighbours(const DriveAnchoring& run, AnchorDriveResult* out) {
+  const StructureAnchorOptions& options = run.options;
+  const VoStructure& vo = run.vo;
+  const std::vector<Posed> posed = PosedAnchors(run.indices, run.pose_of, *out);
 
   // An anchor called ok claims its place along the road to 2 sigma = 2 max_along_sigma_m. Where
   // at least three posed neighbours place its camera (their similarities and the VO, the anchor
@@ -191,12 +211,9 @@ void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out) 
   const VoStructure& vo = run.vo;
   const std::vector<Posed> posed = PosedAnchors(run.indices, run.pose_of, *out);
   const std::vector<double> drift = DriftAcrossAnchors(posed, vo, *out, options);
-  // The schedule's levels that free the scale: the drift changes the scale at the camera.
-  std::vector<double> levels;
-  for (const double d : options.registration.max_distances_m) {
-    if (d <= options.registration.min_scale_distance_m) levels.push_back(d);
-  }
-  if (levels.empty()) levels.push_back(options.registration.max_distances_m.back());
+
+  // The levels that free the scale: the drift changes the scale at the camera.
+  const std::vector<double> levels = ScaleLevels(options.registration);
   ParallelFor(static_cast<int64_t>(posed.size()), options.num_threads, [&](int64_t r) {
     const size_t i = static_cast<size_t>(r);
     const size_t k = posed[i].k;
@@ -208,6 +225,39 @@ void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out) 
     AnchorResult again = AnchorOne(run, run.indices[k], &restart);
     if (!again.has_pose) return;
     again.seconds += out->frames[k].seconds;
+    out->frames[k] = again;
+  });
+}
+
+// The rotation consensus pass (StructureAnchorOptions::rotation_consensus).
+void ApplyRotationConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
+  const StructureAnchorOptions& options = run.options;
+  const VoStructure& vo = run.vo;
+  const std::vector<Posed> posed = PosedAnchors(run.indices, run.pose_of, *out);
+  const std::vector<PlacedAnchor> placed = Place(posed, vo, *out);
+  const std::vector<Eigen::Quaterniond> consensus = ConsensusRotations(placed, options.window_m);
+  const std::vector<double> levels = ScaleLevels(options.registration);
+  ParallelFor(static_cast<int64_t>(posed.size()), options.num_threads, [&](int64_t r) {
+    const size_t i = static_cast<size_t>(r);
+    const size_t k = posed[i].k;
+    // The camera stays where its own fit put it; the structure turns about it.
+    Restart restart;
+    restart.sim = placed[i].map_from_world;
+    restart.sim.rotation = consensus[i];
+    restart.sim.translation =
+        placed[i].map_centre - restart.sim.scale * (consensus[i] * placed[i].vo_centre);
+    const double drift = out->frames[k].scale_drift_per_m;
+    restart.drift_per_m = std::isfinite(drift) ? drift : 0.0;
+    restart.levels_m = levels;
+    restart.hold_rotation = true;
+    AnchorResult again = AnchorOne(run, run.indices[k], &restart);
+    if (!again.has_pose) return;
+    again.seconds += out->frames[k].seconds;
+    // The consensus pass's note stays (the fit it started stays in place).
+    if (out->frames[k].message.find(kConsensusNote) != std::string::npos) {
+      again.message =
+          again.message.empty() ? kConsensusNote : again.message + "; " + kConsensusNote;
+    }
     out->frames[k] = again;
   });
 }
@@ -224,6 +274,46 @@ std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<Place
     }
   }
   return off;
+}
+
+std::vector<Eigen::Quaterniond> ConsensusRotations(const std::vector<PlacedAnchor>& anchors,
+                                                   double window_m) {
+  // The rotation nearest a 3x3 matrix (Frobenius norm).
+  const auto project = [](const Eigen::Matrix3d& m) {
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+    d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0.0 ? -1.0 : 1.0;
+    return Eigen::Matrix3d(svd.matrixU() * d * svd.matrixV().transpose());
+  };
+  std::vector<Eigen::Quaterniond> out(anchors.size());
+  for (size_t i = 0; i < anchors.size(); ++i) {
+    std::vector<Eigen::Matrix3d> rotations;
+    for (const PlacedAnchor& b : anchors) {
+      if (b.segment != anchors[i].segment) continue;
+      if ((b.map_centre - anchors[i].map_centre).head<2>().norm() > window_m) continue;
+      rotations.push_back(b.map_from_world.rotation.toRotationMatrix());
+    }
+    // Weiszfeld's iteration for the point of least summed distance among the matrices, projected
+    // onto the rotations at each step (chordal L1 mean), from their chordal mean.
+    Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+    for (const Eigen::Matrix3d& r : rotations) m += r;
+    m = project(m);
+    for (int iteration = 0; iteration < 50; ++iteration) {
+      Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+      double weights = 0.0;
+      for (const Eigen::Matrix3d& r : rotations) {
+        const double w = 1.0 / std::max((r - m).norm(), 1e-9);
+        sum += w * r;
+        weights += w;
+      }
+      const Eigen::Matrix3d next = project(sum / weights);
+      const double step = (next - m).norm();
+      m = next;
+      if (step < 1e-12) break;
+    }
+    out[i] = Eigen::Quaterniond(m).normalized();
+  }
+  return out;
 }
 
 }  // namespace epiloc

@@ -78,15 +78,18 @@ double PairResidual(const Pair& pair) { return (pair.p * (pair.y - pair.q)).norm
 using Matrix8d = Eigen::Matrix<double, 8, 8>;
 using Vector8d = Eigen::Matrix<double, 8, 1>;
 
+// Which turns of the structure a Gauss-Newton step frees: all, the heading only (turns about the
+// map's vertical axis: pitch and roll held), or none.
+enum class Turns { kAll, kHeadingOnly, kNone };
+
 // Gauss-Newton normal equations in (omega, delta, sigma, kappa) about `centre`: y' = exp(sigma) *
-// Exp(omega) * (y + k dkappa - centre) + centre + delta. Without `with_tilt`, omega's turns
-// about the map's horizontal axes are held at 0; without `with_scale`, sigma; without
-// `with_drift`, kappa.
+// Exp(omega) * (y + k dkappa - centre) + centre + delta. Of omega, only the turns `turns` frees
+// move; without `with_scale`, sigma is held at 0; without `with_drift`, kappa.
 void Accumulate(const std::vector<Pair>& pairs,
                 const Eigen::Vector3d& centre,
                 double loss_scale,
                 RobustLoss loss,
-                bool with_tilt,
+                Turns turns,
                 bool with_scale,
                 bool with_drift,
                 Matrix8d* h,
@@ -103,8 +106,10 @@ void Accumulate(const std::vector<Pair>& pairs,
     *h += w * j.transpose() * pair.p * j;
     *g += w * j.transpose() * r;
   }
-  for (const int held :
-       {with_tilt ? -1 : 0, with_tilt ? -1 : 1, with_scale ? -1 : 6, with_drift ? -1 : 7}) {
+  const bool with_tilt = turns == Turns::kAll;
+  const bool with_heading = turns != Turns::kNone;
+  for (const int held : {with_tilt ? -1 : 0, with_tilt ? -1 : 1, with_heading ? -1 : 2,
+                         with_scale ? -1 : 6, with_drift ? -1 : 7}) {
     if (held < 0) continue;
     h->row(held).setZero();
     h->col(held).setZero();
@@ -450,8 +455,11 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
       const bool free_scale = max_distance <= options.min_scale_distance_m;
       const bool free_tilt =
           !options.hold_tilt_coarse || max_distance <= options.tukey_max_distance_m;
-      Accumulate(pairs, centre, loss_scale, loss, free_tilt, free_scale, free_scale && with_drift,
-                 &h, &g);
+      const Turns turns = options.hold_rotation ? Turns::kNone
+                          : free_tilt           ? Turns::kAll
+                                                : Turns::kHeadingOnly;
+      Accumulate(pairs, centre, loss_scale, loss, turns, free_scale, free_scale && with_drift, &h,
+                 &g);
       // A little damping keeps directions the structure does not constrain where they are.
       h.diagonal() += 1e-6 * (h.diagonal().maxCoeff() + 1.0) * Vector8d::Ones();
       const Vector8d step = h.ldlt().solve(-g);
@@ -505,7 +513,8 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
   // Conditioning: the unweighted Hessian of the final pairs.
   Matrix8d h;
   Vector8d g;
-  Accumulate(pairs, Centroid(pairs), 1e30, RobustLoss::kHuber, true, true, with_drift, &h, &g);
+  Accumulate(pairs, Centroid(pairs), 1e30, RobustLoss::kHuber, Turns::kAll, true, with_drift, &h,
+             &g);
   const Eigen::Vector3d u = direction.normalized();
   const Eigen::Matrix3d htt = h.block<3, 3>(3, 3);
   result.along_information = u.dot(htt * u) / pairs.size();

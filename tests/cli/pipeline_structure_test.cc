@@ -239,10 +239,11 @@ TEST(PipelineStructure, KittiMapVoAnchorGeorefDatabaseLocalize) {
   // (2026-11-27): max 3.87 m (the same frame), piecewise 3.87 m, online mean 0.70 m, max 4.4 m.
   // With the OXTS positions as recorded (map and truth; before import-kitti fused them with the
   // velocity): 15 of 16 ok, median 0.87 m, max 1.94 m, piecewise 2.30 m, online mean 0.62 m,
-  // max 2.16 m.
+  // max 2.16 m. Since the seed follows the road's grade (2026-11-28): max 1.14 m, 1.06 m with
+  // the profile moves and the tilt held; with the rotation consensus: 0.945 m, piecewise the same.
   EXPECT_GE(chain.ok * 8, static_cast<int>(chain.anchors) * 7);
-  EXPECT_LE(chain.anchors_max, 4.5);
-  EXPECT_LE(chain.piecewise_max, 4.5);
+  EXPECT_LE(chain.anchors_max, 1.5);
+  EXPECT_LE(chain.piecewise_max, 1.5);
   EXPECT_GE(chain.online.evaluated() * 10, static_cast<int64_t>(LoadDrive(cam0).frames.size()) * 9);
   EXPECT_LE(along.mean_abs, 1.0);
 }

@@ -25,10 +25,11 @@
 //     nearly level; else `rejected` with the reason.
 //  5. Drift pass (ScaleDriftModel::kAcrossAnchors, default): the VO's scale drift at f from the
 //     scales of the anchors around it, then f registered again from its own fit with the
-//     structure warped by that drift (StructureDrift); then the consensus pass.
+//     structure warped by that drift (StructureDrift); then the consensus pass, the rotation
+//     consensus (rotation_consensus) and the neighbours' check of the ok anchors.
 // Frames: map = the cloud's local ENU (metres); VO world = the trajectory's frame (its units).
-// Accuracy (README): on the shared KITTI drive about 0.65 m and 1.1 degrees (median, the drift
-// pass), metres better than a consumer GNSS but far from the photographs' centimetres: its OXTS
+// Accuracy (README): on the shared KITTI drive about 0.56 m and 0.74 degrees (median, all passes),
+// metres better than a consumer GNSS but far from the photographs' centimetres: its OXTS
 // track is 4 % short of its LiDAR (README), and the ICP's cost on a sparse map
 // and a monocular structure has minima about a metre apart (even exact structure is not placed
 // better there: tools/bench_structure_bound.cc). On the synthetic street the VO's KLT points are
@@ -97,6 +98,16 @@ struct StructureAnchorOptions {
   // 2 sigma (2 max_along_sigma_m): neighbouring fits are not independent (their windows overlap),
   // so agreement proves little, but disagreement disproves the claim.
   double consensus_radius_m = 0.6;
+  // Rotation consensus: a window's fit fixes the structure's rotation poorly where the street is
+  // narrow and long (on KITTI its heading varies by 2.8 degrees from anchor to anchor while the
+  // VO's own orientation stays within 0.5 degrees of one rotation over the whole drive), and an
+  // error in it moves the camera across the road by its distance from the structure's middle.
+  // The VO's orientation drifts far more slowly than that: so each anchor's similarity takes the
+  // median rotation of the anchors whose windows overlap its own (ConsensusRotations), and the
+  // anchor is registered again with that rotation held (translation, scale and drift free, the
+  // levels that free the scale, no profile moves), after the consensus pass and before its
+  // neighbour check.
+  bool rotation_consensus = true;
   double min_inlier_share = 0.3;        // reliability: share of points within the finest distance
   double max_rms_m = 0.15;              // reliability: RMS residual of the inliers, metres
   double max_scale_change = 0.2;        // reliability: |scale / seed scale - 1|
@@ -151,6 +162,12 @@ struct PlacedAnchor {
 // window_m / 2 of its own; nullopt with fewer than three of them.
 std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<PlacedAnchor>& anchors,
                                                          double window_m);
+// Per anchor, the rotation consensus of its neighbours (StructureAnchorOptions::
+// rotation_consensus): the chordal L1 median of the rotations of the similarities of the anchors
+// of its segment whose map centres lie within window_m of its own (itself included; the anchors
+// whose windows overlap its window). A median: an anchor turned by a wrong basin does not move it.
+std::vector<Eigen::Quaterniond> ConsensusRotations(const std::vector<PlacedAnchor>& anchors,
+                                                   double window_m);
 
 // The median along_sigma_m of the anchors with a pose (infinity without any): how well the
 // registrations fix them along the road, the direction a structure fixes least. `epiloc anchor

@@ -101,6 +101,10 @@ struct StructureRegistrationOptions {
   // parked cars changed). The seed's tilt is the caller's: the anchors turn it to the road's
   // grade (StructureAnchorOptions::seed_grade).
   bool hold_tilt_coarse = true;
+  // The rotation held at the start's at every level (the translation, scale and drift free): for
+  // a start whose rotation is known better than the structure fixes it (the anchors' rotation
+  // consensus, StructureAnchorOptions::rotation_consensus).
+  bool hold_rotation = false;
   double min_inlier_share = 0.0;      // registration fails below this share (checks: caller)
   int min_points = 20;                // fewer points: no registration
 
