@@ -320,19 +320,7 @@ const Eigen::Vector3f& StructureMap::Point(int index) const {
 }
 
 int StructureMap::Nearest(const Eigen::Vector3d& x, double max_distance_m) const {
-  if (!impl_->index) return -1;
-  float query[3] = {static_cast<float>(x.x()), static_cast<float>(x.y()),
-                    static_cast<float>(x.z())};
-  size_t index = 0;
-  float distance2 = 0.0f;
-  flann::Matrix<float> q(query, 1, 3);
-  flann::Matrix<size_t> i(&index, 1, 1);
-  flann::Matrix<float> d(&distance2, 1, 1);
-  flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED);
-  params.cores = 1;
-  if (impl_->index->knnSearch(q, i, d, 1, params) < 1) return -1;
-  if (distance2 > max_distance_m * max_distance_m) return -1;
-  return static_cast<int>(index);
+  return Nearest(std::vector<Eigen::Vector3d>{x}, max_distance_m).front();
 }
 
 std::vector<int> StructureMap::Nearest(const std::vector<Eigen::Vector3d>& x,
@@ -348,12 +336,16 @@ std::vector<int> StructureMap::Nearest(const std::vector<Eigen::Vector3d>& x,
   flann::Matrix<float> q(queries.data(), x.size(), 3);
   flann::Matrix<size_t> im(indices.data(), x.size(), 1);
   flann::Matrix<float> dm(distances.data(), x.size(), 1);
+  // The nearest within the distance: a search bounded by it from the start (L2_Simple: squared
+  // distances), which skips the kd-tree's cells beyond it.
   flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED);
   params.cores = 1;
-  impl_->index->knnSearch(q, im, dm, 1, params);
-  const float max2 = static_cast<float>(max_distance_m * max_distance_m);
+  params.max_neighbors = 1;
+  params.sorted = false;
+  impl_->index->radiusSearch(q, im, dm, static_cast<float>(max_distance_m * max_distance_m),
+                             params);
   for (size_t i = 0; i < x.size(); ++i) {
-    if (distances[i] <= max2) out[i] = static_cast<int>(indices[i]);
+    if (indices[i] != static_cast<size_t>(-1)) out[i] = static_cast<int>(indices[i]);
   }
   return out;
 }
