@@ -193,10 +193,12 @@ VoStructure VoStructure::OnFramesOf(const Drive& drive, std::vector<int>* pose_o
 namespace {
 
 // The similarity that maps `points` warped by `drift` (at the scale of `sim`) closest, in least
-// squares, to where `sim` maps them unwarped.
+// squares, to where `sim` maps them unwarped; with `keep_rotation`, the one with sim's rotation
+// (scale as fitted, translation through the centroids).
 Similarity3 Rewarped(const std::vector<Eigen::Vector3d>& points,
                      const StructureDrift& drift,
-                     const Similarity3& sim) {
+                     const Similarity3& sim,
+                     bool keep_rotation) {
   if (drift.per_m == 0.0 || points.size() < 3) return sim;
   const double kappa = drift.per_m * sim.scale;
   Eigen::Matrix3Xd from(3, points.size()), to(3, points.size());
@@ -209,6 +211,11 @@ Similarity3 Rewarped(const std::vector<Eigen::Vector3d>& points,
   out.scale = t.block<3, 1>(0, 0).norm();
   out.rotation = Eigen::Quaterniond(t.block<3, 3>(0, 0) / out.scale).normalized();
   out.translation = t.block<3, 1>(0, 3);
+  if (keep_rotation) {
+    out.rotation = sim.rotation;
+    out.translation =
+        to.rowwise().mean() - out.scale * (out.rotation * Eigen::Vector3d(from.rowwise().mean()));
+  }
   return out;
 }
 
@@ -453,20 +460,8 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
     if (restart->hold_rotation) fine.profile_moves = 0;
     // Under a drift the structure changes shape: the start is the similarity that takes the
     // warped points where `given` takes the points (least squares).
-    Similarity3 start = drift ? Rewarped(points, *drift, *given) : *given;
-    if (restart->hold_rotation && drift) {
-      // The same with the rotation held: scale and translation only.
-      Eigen::Vector3d from = Eigen::Vector3d::Zero(), to = Eigen::Vector3d::Zero();
-      const double kappa = drift->per_m * given->scale;
-      for (size_t i = 0; i < points.size(); ++i) {
-        from += points[i] + kappa * drift->directions[i];
-        to += *given * points[i];
-      }
-      from /= static_cast<double>(points.size());
-      to /= static_cast<double>(points.size());
-      start.rotation = given->rotation;
-      start.translation = to - start.scale * (start.rotation * from);
-    }
+    const Similarity3 start =
+        drift ? Rewarped(points, *drift, *given, restart->hold_rotation) : *given;
     best = RegisterStructure(points, structure_map, start, along, fine, drift);
     have = true;
     offsets.clear();
