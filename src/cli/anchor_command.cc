@@ -232,6 +232,10 @@ int RunAnchor(int argc, char** argv) {
                  "structure: anchors farther than this from their neighbours' agreed placement "
                  "are registered again from it, metres (0: off)")
       ->capture_default_str();
+  app.add_option("--rotation-consensus", structure.rotation_consensus,
+                 "structure: each anchor registered again with the median rotation of the anchors "
+                 "whose windows overlap its own held (true/false)")
+      ->capture_default_str();
   app.add_option("--scale-drift", scale_drift,
                  "structure: the VO's scale drift along a window: anchors (from the scales of "
                  "the anchors around, then each registered again with it), window (estimated in "
