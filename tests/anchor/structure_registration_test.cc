@@ -97,6 +97,18 @@ Similarity3 Perturb(const Similarity3& truth,
   return s;
 }
 
+// Every `every`-th point of the street in the world frame of `map_from_world`: exact structure.
+std::vector<Eigen::Vector3d> ExactStructure(const Street& street,
+                                            const Similarity3& map_from_world,
+                                            size_t every) {
+  const Similarity3 world_from_map = map_from_world.Inverse();
+  std::vector<Eigen::Vector3d> structure;
+  for (size_t i = 0; i < street.points.size(); i += every) {
+    structure.push_back(world_from_map * street.points[i]);
+  }
+  return structure;
+}
+
 double RotationErrorDeg(const Similarity3& a, const Similarity3& b) {
   return a.rotation.angularDistance(b.rotation) / kDegToRad;
 }
@@ -106,11 +118,7 @@ double RotationErrorDeg(const Similarity3& a, const Similarity3& b) {
 TEST(StructureRegistration, RecoversExactSimilarity) {
   const Street street = MakeStreet(0.2, true);
   const Similarity3 map_from_world = MakeSimilarity(7.5, 33.0, -2.0, {101.0, -42.0, 3.0});
-  const Similarity3 world_from_map = map_from_world.Inverse();
-  std::vector<Eigen::Vector3d> structure;
-  for (size_t i = 0; i < street.points.size(); i += 7) {
-    structure.push_back(world_from_map * street.points[i]);
-  }
+  const std::vector<Eigen::Vector3d> structure = ExactStructure(street, map_from_world, 7);
   const Similarity3 seed = Perturb(map_from_world, {2.0, -2.0, 0.5}, 5.0, 1.08);
   StructureRegistrationOptions options;
   options.converged_m = 1e-10;
@@ -307,10 +315,7 @@ TEST(StructureRegistration, TheProfileMovesAFitAPeriodOffToWhereMorePointsLie) {
 TEST(StructureRegistration, TiltIsHeldAtTheCoarseLevelsAndFreedAtTheFineOnes) {
   const Street street = MakeStreet(0.2, true);
   const Similarity3 truth = MakeSimilarity(2.0, 20.0, 0.0, {3.0, -1.0, 0.5});
-  std::vector<Eigen::Vector3d> structure;
-  for (size_t i = 0; i < street.points.size(); i += 5) {
-    structure.push_back(truth.Inverse() * street.points[i]);
-  }
+  const std::vector<Eigen::Vector3d> structure = ExactStructure(street, truth, 5);
   Similarity3 seed = truth;
   seed.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(1.0 * kDegToRad, Eigen::Vector3d::UnitY())) *
                   truth.rotation;
@@ -348,10 +353,7 @@ TEST(StructureRegistration, TiltIsHeldAtTheCoarseLevelsAndFreedAtTheFineOnes) {
 TEST(StructureRegistration, AHeldRotationStaysAndTheRestConverges) {
   const Street street = MakeStreet(0.2, true);
   const Similarity3 truth = MakeSimilarity(2.0, 20.0, 0.0, {3.0, -1.0, 0.5});
-  std::vector<Eigen::Vector3d> structure;
-  for (size_t i = 0; i < street.points.size(); i += 5) {
-    structure.push_back(truth.Inverse() * street.points[i]);
-  }
+  const std::vector<Eigen::Vector3d> structure = ExactStructure(street, truth, 5);
   StructureRegistrationOptions options;
   options.search_step_m = 0.0;
   options.hold_rotation = true;
