@@ -611,10 +611,15 @@ double MedianAlongSigma(const AnchorDriveResult& result) {
   return sigmas[sigmas.size() / 2];
 }
 
-AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
-                                         const VoStructure& vo,
-                                         const StructureAnchorOptions& options,
-                                         const ProgressCallback& progress) {
+namespace {
+
+// AnchorDriveByStructure, and with `alternative`, AnchorDriveByStructureAuto.
+AnchorDriveResult AnchorByStructure(const AnchorInputs& inputs,
+                                    const VoStructure& vo,
+                                    const std::function<VoStructure()>* alternative,
+                                    const StructureAnchorOptions& options,
+                                    const ProgressCallback& progress,
+                                    StructureChoice* choice) {
   const auto start = std::chrono::steady_clock::now();
   inputs.Check();
   options.Check();
@@ -623,12 +628,16 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
     Throw("{}: the drive has no GNSS positions to anchor from", inputs.drive_dir);
   }
   const std::vector<size_t> indices = anchor_internal::SelectFrames(inputs, drive);
+  const auto on_frames = [&](const VoStructure& structure, std::vector<int>* pose_of) {
+    VoStructure timed = structure.OnFramesOf(drive, pose_of);
+    if (std::none_of(pose_of->begin(), pose_of->end(), [](int k) { return k >= 0; })) {
+      Throw("{}: no VO pose falls on a frame time of drive {} (another drive?)", inputs.vo_path,
+            inputs.drive_dir);
+    }
+    return timed;
+  };
   std::vector<int> pose_of;
-  const VoStructure timed = vo.OnFramesOf(drive, &pose_of);
-  if (std::none_of(pose_of.begin(), pose_of.end(), [](int k) { return k >= 0; })) {
-    Throw("{}: no VO pose falls on a frame time of drive {} (another drive?)", inputs.vo_path,
-          inputs.drive_dir);
-  }
+  VoStructure timed = on_frames(vo, &pose_of);
   const std::unique_ptr<TiledCloud> map =
       anchor_internal::OpenMap(inputs.cloud_path, inputs.tile_dir, inputs.max_whole_points);
   const EnuFrame map_frame(inputs.map_origin);
@@ -638,7 +647,6 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
   out.drive_name = drive.name;
   out.frames.resize(indices.size());
   std::mutex progress_mutex;
-  int64_t done = 0;
   // The map around the whole run, voxel-filtered once, when that is not too large; else each
   // frame loads (and filters) its own neighbourhood.
   const double load_radius =
@@ -688,15 +696,60 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
     near.rgb.clear();
     return options.map_voxel_m > 0 ? VoxelFilter(near, options.map_voxel_m) : near;
   };
+  // The first pass: each frame from the GNSS seed.
+  const auto first_pass = [&](const structure_internal::DriveAnchoring& run,
+                              const ProgressCallback& report) {
+    AnchorDriveResult first = out;
+    int64_t done = 0;
+    ParallelFor(static_cast<int64_t>(indices.size()), options.num_threads, [&](int64_t k) {
+      first.frames[static_cast<size_t>(k)] =
+          structure_internal::AnchorOne(run, indices[static_cast<size_t>(k)]);
+      std::lock_guard<std::mutex> lock(progress_mutex);
+      ++done;
+      if (report) report(done, static_cast<int64_t>(indices.size()));
+    });
+    return first;
+  };
+  out = first_pass({drive, indices, pose_of, timed, load, map_frame, options}, progress);
+  if (alternative) {
+    // `auto`: the alternative structure too where the first's anchors are not fixed along the
+    // road, and the passes for the one that fixes them better (by the first pass's median
+    // along-road sigma: the passes start from it, and run once).
+    StructureChoice c;
+    c.first_sigma_m = MedianAlongSigma(out);
+    if (c.first_sigma_m > options.max_along_sigma_m) {
+      c.alternative_tried = true;
+      std::vector<int> alternative_pose_of;
+      VoStructure alternative_timed = on_frames((*alternative)(), &alternative_pose_of);
+      AnchorDriveResult other = first_pass(
+          {drive, indices, alternative_pose_of, alternative_timed, load, map_frame, options},
+          nullptr);
+      c.alternative_sigma_m = MedianAlongSigma(other);
+      // At equal medians (the profile's sigma comes in steps of half the finest distance), the
+      // smaller mean.
+      const auto mean_sigma = [](const AnchorDriveResult& r) {
+        double sum = 0.0;
+        int n = 0;
+        for (const AnchorResult& a : r.frames) {
+          if (a.has_pose && std::isfinite(a.along_sigma_m)) {
+            sum += a.along_sigma_m;
+            ++n;
+          }
+        }
+        return n > 0 ? sum / n : INFINITY;
+      };
+      if (c.alternative_sigma_m < c.first_sigma_m ||
+          (c.alternative_sigma_m == c.first_sigma_m && mean_sigma(other) < mean_sigma(out))) {
+        c.alternative_kept = true;
+        out = std::move(other);
+        pose_of = std::move(alternative_pose_of);
+        timed = std::move(alternative_timed);
+      }
+    }
+    if (choice) *choice = c;
+  }
   const structure_internal::DriveAnchoring run{drive, indices,   pose_of, timed,
                                                load,  map_frame, options};
-  ParallelFor(static_cast<int64_t>(indices.size()), options.num_threads, [&](int64_t k) {
-    out.frames[static_cast<size_t>(k)] =
-        structure_internal::AnchorOne(run, indices[static_cast<size_t>(k)]);
-    std::lock_guard<std::mutex> lock(progress_mutex);
-    ++done;
-    if (progress) progress(done, static_cast<int64_t>(indices.size()));
-  });
   if (options.scale_drift == ScaleDriftModel::kAcrossAnchors) {
     structure_internal::ApplyDriftAcrossAnchors(run, &out);
   }
@@ -706,6 +759,24 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
   for (const AnchorResult& r : out.frames) out.num_ok += r.status == AnchorStatus::kOk ? 1 : 0;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
+}
+
+}  // namespace
+
+AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
+                                         const VoStructure& vo,
+                                         const StructureAnchorOptions& options,
+                                         const ProgressCallback& progress) {
+  return AnchorByStructure(inputs, vo, nullptr, options, progress, nullptr);
+}
+
+AnchorDriveResult AnchorDriveByStructureAuto(const AnchorInputs& inputs,
+                                             const VoStructure& vo,
+                                             const std::function<VoStructure()>& alternative,
+                                             const StructureAnchorOptions& options,
+                                             const ProgressCallback& progress,
+                                             StructureChoice* choice) {
+  return AnchorByStructure(inputs, vo, &alternative, options, progress, choice);
 }
 
 }  // namespace epiloc

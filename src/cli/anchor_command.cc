@@ -324,47 +324,46 @@ int RunAnchor(int argc, char** argv) {
     structure.seed = options.seed;
     structure.num_threads = options.num_threads;
     const VoStructure vo = VoStructure::Read(inputs.vo_path, vo_points_path);
-    const auto with_sift = [&] {
+    // The drive's SIFT features triangulated along the VO poses (structure_sift.h).
+    const auto sift_structure = [&] {
       BuildDbOptions build;
       build.num_threads = options.num_threads;
       SiftStructureSummary sift;
       Progress triangulation("structure", 0);
-      const VoStructure triangulated =
+      VoStructure triangulated =
           TriangulateAlongVo(inputs.drive_dir, vo, build, &sift, triangulation.Callback());
       triangulation.Finish();
       spdlog::info(
           "structure: {} SIFT points (mean track {:.1f} frames) triangulated along the VO poses "
           "of {} frames in {} segment(s), {:.1f} s",
           sift.points, sift.mean_track_length, sift.frames, sift.segments, sift.seconds);
-      Progress sift_progress("anchor (SIFT structure)", 0);
-      AnchorDriveResult r =
-          AnchorDriveByStructure(inputs, triangulated, structure, sift_progress.Callback());
-      sift_progress.Finish();
-      return r;
+      return triangulated;
     };
     if (structure_source == "sift") {
-      result = with_sift();
-    } else {
+      result = AnchorDriveByStructure(inputs, sift_structure(), structure, progress.Callback());
+    } else if (structure_source == "vo") {
       result = AnchorDriveByStructure(inputs, vo, structure, progress.Callback());
-    }
-    if (structure_source == "auto") {
-      // The VO's points first; where they do not fix the anchors along the road (median
-      // along_sigma_m above the ok gate), the SIFT structure too, and the better fixed kept.
-      const double klt = MedianAlongSigma(result);
-      if (klt > structure.max_along_sigma_m) {
-        progress.Finish();
-        AnchorDriveResult sift = with_sift();
-        const double by_sift = MedianAlongSigma(sift);
+    } else {
+      // The VO's points first; where they do not fix the anchors along the road, the SIFT
+      // structure too, and the better fixed one gets the passes.
+      StructureChoice choice;
+      const auto after_the_first = [&] {
+        progress.Finish();  // the VO's points' first pass
+        return sift_structure();
+      };
+      result = AnchorDriveByStructureAuto(inputs, vo, after_the_first, structure,
+                                          progress.Callback(), &choice);
+      if (choice.alternative_tried) {
         spdlog::info(
             "structure auto: median along-road sigma {:.3f} m with the VO's points, {:.3f} m with "
-            "the SIFT structure: the {} kept",
-            klt, by_sift, by_sift < klt ? "SIFT structure" : "VO's points");
-        if (by_sift < klt) result = std::move(sift);
+            "the SIFT structure (first pass): the {} kept",
+            choice.first_sigma_m, choice.alternative_sigma_m,
+            choice.alternative_kept ? "SIFT structure" : "VO's points");
       } else {
         spdlog::info(
             "structure auto: the VO's points fix the anchors along the road (median sigma {:.3f} "
-            "m), no SIFT structure",
-            klt);
+            "m, first pass), no SIFT structure",
+            choice.first_sigma_m);
       }
     }
   } else {

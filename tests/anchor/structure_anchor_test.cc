@@ -206,8 +206,46 @@ TEST(StructureAnchor, SiftStructureAlongTheVoPosesPlacesTheSyntheticQuery) {
   for (double a : Compare(alone, query, EnuFrame(SynthOrigin())).along_m) {
     alone_along.push_back(std::abs(a));
   }
-  const Errors with_klt =
-      Compare(AnchorDriveByStructure(inputs, klt, options), query, EnuFrame(SynthOrigin()));
+  const AnchorDriveResult klt_result = AnchorDriveByStructure(inputs, klt, options);
+  const Errors with_klt = Compare(klt_result, query, EnuFrame(SynthOrigin()));
+
+  // `auto` (AnchorDriveByStructureAuto): the KLT points' first pass leaves the anchors unfixed
+  // along the road, so the SIFT structure is asked for (once), fixes them better and gets the
+  // passes: the very anchors AnchorDriveByStructure gives with it. Where the first structure
+  // fixes them (a gate of 100 m), the alternative is not asked for.
+  const auto same_poses = [](const AnchorDriveResult& a, const AnchorDriveResult& b) {
+    if (a.frames.size() != b.frames.size()) return false;
+    for (size_t i = 0; i < a.frames.size(); ++i) {
+      if (a.frames[i].has_pose != b.frames[i].has_pose ||
+          a.frames[i].status != b.frames[i].status ||
+          (a.frames[i].has_pose &&
+           (a.frames[i].map_from_cam.translation - b.frames[i].map_from_cam.translation).norm() >
+               1e-12)) {
+        return false;
+      }
+    }
+    return true;
+  };
+  int asked = 0;
+  const auto ask = [&] {
+    ++asked;
+    return sift;
+  };
+  StructureChoice choice;
+  const AnchorDriveResult by_auto =
+      AnchorDriveByStructureAuto(inputs, klt, ask, options, nullptr, &choice);
+  EXPECT_EQ(asked, 1);
+  EXPECT_TRUE(choice.alternative_tried);
+  EXPECT_TRUE(choice.alternative_kept);
+  EXPECT_GT(choice.first_sigma_m, options.max_along_sigma_m);
+  EXPECT_LT(choice.alternative_sigma_m, choice.first_sigma_m);
+  EXPECT_TRUE(same_poses(by_auto, sift_result));
+  StructureAnchorOptions lenient = options;
+  lenient.max_along_sigma_m = 100.0;
+  const AnchorDriveResult klt_fixes = AnchorDriveByStructureAuto(inputs, klt, ask, lenient);
+  EXPECT_EQ(asked, 1);
+  EXPECT_TRUE(same_poses(klt_fixes, AnchorDriveByStructure(inputs, klt, lenient)));
+
   std::vector<double> sift_along, klt_along;
   for (double a : with_sift.along_m) sift_along.push_back(std::abs(a));
   for (double a : with_klt.along_m) klt_along.push_back(std::abs(a));

@@ -38,6 +38,8 @@
 // triangulated along the VO poses (structure_sift.h) are placed to 0.035 m (median) there.
 #pragma once
 
+#include <cmath>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -170,8 +172,8 @@ std::vector<Eigen::Quaterniond> ConsensusRotations(const std::vector<PlacedAncho
                                                    double window_m);
 
 // The median along_sigma_m of the anchors with a pose (infinity without any): how well the
-// registrations fix them along the road, the direction a structure fixes least. `epiloc anchor
-// --structure auto` keeps, of the VO's points and the SIFT structure, the one with the smaller.
+// registrations fix them along the road, the direction a structure fixes least.
+// AnchorDriveByStructureAuto keeps, of two structures, the one with the smaller.
 double MedianAlongSigma(const AnchorDriveResult& result);
 
 // Anchors the selected frames of a drive (inputs.frames / inputs.every; photos_dir unused) by
@@ -181,5 +183,28 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
                                          const VoStructure& vo,
                                          const StructureAnchorOptions& options,
                                          const ProgressCallback& progress = nullptr);
+
+// What AnchorDriveByStructureAuto chose.
+struct StructureChoice {
+  double first_sigma_m = INFINITY;        // MedianAlongSigma of the first pass with `vo`
+  bool alternative_tried = false;         // the first above max_along_sigma_m: the alternative
+  double alternative_sigma_m = INFINITY;  // ... its first pass's
+  bool alternative_kept = false;          // ... smaller: the alternative anchored the drive
+};
+
+// `epiloc anchor --structure auto`: the first pass (every frame from the GNSS seed) with `vo`'s
+// points; where they do not fix the anchors along the road (MedianAlongSigma above
+// options.max_along_sigma_m), also with `alternative()`'s structure (called then only: e.g. the
+// SIFT structure, TriangulateAlongVo, which costs a pass over the drive's images), and the
+// passes (drift, consensus, rotation consensus, the neighbours' check) only for the structure
+// whose first pass has the smaller median sigma (equal medians: the smaller mean; the sigma
+// comes in steps of half the finest correspondence distance). `choice` (optional) gets the
+// figures.
+AnchorDriveResult AnchorDriveByStructureAuto(const AnchorInputs& inputs,
+                                             const VoStructure& vo,
+                                             const std::function<VoStructure()>& alternative,
+                                             const StructureAnchorOptions& options,
+                                             const ProgressCallback& progress = nullptr,
+                                             StructureChoice* choice = nullptr);
 
 }  // namespace epiloc
