@@ -711,51 +711,47 @@ AnchorDriveResult AnchorByStructure(const AnchorInputs& inputs,
     return first;
   };
   out = first_pass({drive, indices, pose_of, timed, load, map_frame, options}, progress);
-  if (alternative) {
-    // `auto`: the alternative structure too where the first's anchors are not fixed along the
-    // road, and the passes for the one that fixes them better (by the first pass's median
-    // along-road sigma: the passes start from it, and run once).
-    StructureChoice c;
-    c.first_sigma_m = MedianAlongSigma(out);
-    if (c.first_sigma_m > options.max_along_sigma_m) {
-      c.alternative_tried = true;
-      std::vector<int> alternative_pose_of;
-      VoStructure alternative_timed = on_frames((*alternative)(), &alternative_pose_of);
-      AnchorDriveResult other = first_pass(
-          {drive, indices, alternative_pose_of, alternative_timed, load, map_frame, options},
-          nullptr);
-      c.alternative_sigma_m = MedianAlongSigma(other);
-      // At equal medians (the profile's sigma comes in steps of half the finest distance), the
-      // smaller mean.
-      const auto mean_sigma = [](const AnchorDriveResult& r) {
-        double sum = 0.0;
-        int n = 0;
-        for (const AnchorResult& a : r.frames) {
-          if (a.has_pose && std::isfinite(a.along_sigma_m)) {
-            sum += a.along_sigma_m;
-            ++n;
-          }
-        }
-        return n > 0 ? sum / n : INFINITY;
-      };
-      if (c.alternative_sigma_m < c.first_sigma_m ||
-          (c.alternative_sigma_m == c.first_sigma_m && mean_sigma(other) < mean_sigma(out))) {
-        c.alternative_kept = true;
-        out = std::move(other);
-        pose_of = std::move(alternative_pose_of);
-        timed = std::move(alternative_timed);
-      }
+  // The passes after the first (structure_anchor.h, step 5).
+  const auto passes = [&](const structure_internal::DriveAnchoring& run, AnchorDriveResult* r) {
+    if (options.scale_drift == ScaleDriftModel::kAcrossAnchors) {
+      structure_internal::ApplyDriftAcrossAnchors(run, r);
     }
-    if (choice) *choice = c;
-  }
+    if (options.consensus_radius_m > 0.0) structure_internal::ApplyConsensus(run, r);
+    if (options.rotation_consensus) structure_internal::ApplyRotationConsensus(run, r);
+    if (options.consensus_radius_m > 0.0) structure_internal::GateByNeighbours(run, r);
+  };
   const structure_internal::DriveAnchoring run{drive, indices,   pose_of, timed,
                                                load,  map_frame, options};
-  if (options.scale_drift == ScaleDriftModel::kAcrossAnchors) {
-    structure_internal::ApplyDriftAcrossAnchors(run, &out);
+  StructureChoice c;
+  c.first_sigma_m = MedianAlongSigma(out);
+  if (alternative && c.first_sigma_m > options.max_along_sigma_m) {
+    // `auto`: the alternative structure too where the first's anchors are not fixed along the
+    // road. The first passes decide where their median along-road sigmas differ (the passes
+    // then run once); equal medians (the sigma comes in steps of half the finest distance) tell
+    // nothing, and the finished runs decide.
+    c.alternative_tried = true;
+    std::vector<int> alternative_pose_of;
+    const VoStructure alternative_timed = on_frames((*alternative)(), &alternative_pose_of);
+    const structure_internal::DriveAnchoring other_run{
+        drive, indices, alternative_pose_of, alternative_timed, load, map_frame, options};
+    AnchorDriveResult other = first_pass(other_run, nullptr);
+    c.alternative_sigma_m = MedianAlongSigma(other);
+    if (c.alternative_sigma_m == c.first_sigma_m) {
+      c.decided_by_finished_runs = true;
+      passes(run, &out);
+      passes(other_run, &other);
+      c.first_sigma_m = MedianAlongSigma(out);
+      c.alternative_sigma_m = MedianAlongSigma(other);
+      c.alternative_kept = c.alternative_sigma_m < c.first_sigma_m;
+    } else {
+      c.alternative_kept = c.alternative_sigma_m < c.first_sigma_m;
+      passes(c.alternative_kept ? other_run : run, c.alternative_kept ? &other : &out);
+    }
+    if (c.alternative_kept) out = std::move(other);
+  } else {
+    passes(run, &out);
   }
-  if (options.consensus_radius_m > 0.0) structure_internal::ApplyConsensus(run, &out);
-  if (options.rotation_consensus) structure_internal::ApplyRotationConsensus(run, &out);
-  if (options.consensus_radius_m > 0.0) structure_internal::GateByNeighbours(run, &out);
+  if (choice) *choice = c;
   for (const AnchorResult& r : out.frames) out.num_ok += r.status == AnchorStatus::kOk ? 1 : 0;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;

@@ -356,8 +356,9 @@ int RunAnchor(int argc, char** argv) {
       if (choice.alternative_tried) {
         spdlog::info(
             "structure auto: median along-road sigma {:.3f} m with the VO's points, {:.3f} m with "
-            "the SIFT structure (first pass): the {} kept",
+            "the SIFT structure ({}): the {} kept",
             choice.first_sigma_m, choice.alternative_sigma_m,
+            choice.decided_by_finished_runs ? "first passes equal, finished runs" : "first pass",
             choice.alternative_kept ? "SIFT structure" : "VO's points");
       } else {
         spdlog::info(

@@ -190,6 +190,8 @@ struct StructureChoice {
   bool alternative_tried = false;         // the first above max_along_sigma_m: the alternative
   double alternative_sigma_m = INFINITY;  // ... its first pass's
   bool alternative_kept = false;          // ... smaller: the alternative anchored the drive
+  bool decided_by_finished_runs = false;  // equal first-pass medians: the sigmas above are the
+                                          // finished runs'
 };
 
 // `epiloc anchor --structure auto`: the first pass (every frame from the GNSS seed) with `vo`'s
@@ -197,9 +199,9 @@ struct StructureChoice {
 // options.max_along_sigma_m), also with `alternative()`'s structure (called then only: e.g. the
 // SIFT structure, TriangulateAlongVo, which costs a pass over the drive's images), and the
 // passes (drift, consensus, rotation consensus, the neighbours' check) only for the structure
-// whose first pass has the smaller median sigma (equal medians: the smaller mean; the sigma
-// comes in steps of half the finest correspondence distance). `choice` (optional) gets the
-// figures.
+// whose first pass has the smaller median sigma. Equal medians (the sigma comes in steps of half
+// the finest correspondence distance) tell nothing: then both get the passes and the finished
+// runs' medians decide (ties: `vo`). `choice` (optional) gets the figures.
 AnchorDriveResult AnchorDriveByStructureAuto(const AnchorInputs& inputs,
                                              const VoStructure& vo,
                                              const std::function<VoStructure()>& alternative,
