@@ -11,6 +11,7 @@
 
 #include "epiloc/anchor/structure_anchor.h"
 #include "epiloc/core/parallel.h"
+#include "epiloc/geo/rigid3.h"
 #include "structure_anchor_internal.h"
 
 namespace epiloc {
@@ -278,13 +279,6 @@ std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<Place
 
 std::vector<Eigen::Quaterniond> ConsensusRotations(const std::vector<PlacedAnchor>& anchors,
                                                    double window_m) {
-  // The rotation nearest a 3x3 matrix (Frobenius norm).
-  const auto project = [](const Eigen::Matrix3d& m) {
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-    d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0.0 ? -1.0 : 1.0;
-    return Eigen::Matrix3d(svd.matrixU() * d * svd.matrixV().transpose());
-  };
   std::vector<Eigen::Quaterniond> out(anchors.size());
   for (size_t i = 0; i < anchors.size(); ++i) {
     std::vector<Eigen::Matrix3d> rotations;
@@ -297,7 +291,7 @@ std::vector<Eigen::Quaterniond> ConsensusRotations(const std::vector<PlacedAncho
     // onto the rotations at each step (chordal L1 mean), from their chordal mean.
     Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
     for (const Eigen::Matrix3d& r : rotations) m += r;
-    m = project(m);
+    m = NearestRotation(m);
     for (int iteration = 0; iteration < 50; ++iteration) {
       Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
       double weights = 0.0;
@@ -306,7 +300,7 @@ std::vector<Eigen::Quaterniond> ConsensusRotations(const std::vector<PlacedAncho
         sum += w * r;
         weights += w;
       }
-      const Eigen::Matrix3d next = project(sum / weights);
+      const Eigen::Matrix3d next = NearestRotation(sum / weights);
       const double step = (next - m).norm();
       m = next;
       if (step < 1e-12) break;

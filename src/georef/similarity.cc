@@ -7,6 +7,7 @@
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include "epiloc/core/error.h"
+#include "epiloc/geo/rigid3.h"
 
 namespace epiloc {
 
@@ -76,10 +77,7 @@ std::optional<Sim3d> FitSim3(const std::vector<Eigen::Vector3d>& source,
   const double scale_guess = std::sqrt(target_spread / source_spread);
   const Eigen::Matrix3d m =
       cross / (scale_guess * source_spread) + rotations / static_cast<double>(n);
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  const Eigen::Matrix3d r = svd.matrixU() * d * svd.matrixV().transpose();
+  const Eigen::Matrix3d r = NearestRotation(m);
   Sim3d sim;
   sim.scale = (cross.cwiseProduct(r)).sum() / source_spread;  // sum y . R x / sum |x|^2
   if (!(sim.scale > 0.0) || !std::isfinite(sim.scale)) return std::nullopt;

@@ -26,6 +26,10 @@ struct Rigid3d {
   Eigen::Matrix<double, 3, 4> ToMatrix3x4() const;
 };
 
+// The rotation nearest a 3x3 matrix in the Frobenius norm (U diag(1, 1, det(U V^T)) V^T of its
+// SVD): e.g. of a sum of rotations, their chordal mean.
+Eigen::Matrix3d NearestRotation(const Eigen::Matrix3d& m);
+
 // Angle of the relative rotation between two orientations, degrees in [0, 180].
 double RotationDifferenceDeg(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b);
 
