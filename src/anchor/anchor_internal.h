@@ -12,6 +12,7 @@
 
 #include "epiloc/anchor/anchor.h"
 #include "epiloc/camera/camera.h"
+#include "epiloc/cloud/cloud_io.h"
 #include "epiloc/cloud/tiled_cloud.h"
 #include "epiloc/geo/geodetic.h"
 #include "epiloc/geo/rigid3.h"
@@ -19,6 +20,9 @@
 
 namespace epiloc {
 namespace anchor_internal {
+
+// The cloud format of a drive's scan file (`path`: the scan's resolved path, for messages).
+CloudFormat ScanFormat(const LidarScan& scan, const std::string& path);
 
 // map_from_cam of a camera whose position sample (WGS-84 centre, enu_from_cam in the local ENU
 // at that position) is expressed in the map's ENU frame.

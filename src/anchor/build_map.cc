@@ -23,15 +23,7 @@ namespace epiloc {
 namespace {
 
 using anchor_internal::MapFromSample;
-
-CloudFormat ScanFormat(const LidarScan& scan, const std::string& path) {
-  if (scan.format == "kitti_bin") return CloudFormat::kKittiBin;
-  try {
-    return ParseCloudFormat(scan.format);
-  } catch (const Error& e) {
-    Throw("{}: scan format '{}': {}", path, scan.format, e.what());
-  }
-}
+using anchor_internal::ScanFormat;
 
 // Motion compensation of one scan (BuildMapOptions::deskew_period_s): the sensor's motion
 // relative to its pose at the scan time, at the start and end of the revolution, interpolated
@@ -402,4 +394,16 @@ BuildMapSummary BuildMap(const std::string& drive_dir,
   return summary;
 }
 
+namespace anchor_internal {
+
+CloudFormat ScanFormat(const LidarScan& scan, const std::string& path) {
+  if (scan.format == "kitti_bin") return CloudFormat::kKittiBin;
+  try {
+    return ParseCloudFormat(scan.format);
+  } catch (const Error& e) {
+    Throw("{}: scan format '{}': {}", path, scan.format, e.what());
+  }
+}
+
+}  // namespace anchor_internal
 }  // namespace epiloc

@@ -11,6 +11,7 @@
 
 #include "anchor_test_util.h"
 #include "epiloc/anchor/build_map.h"
+#include "epiloc/anchor/lidar_track.h"
 #include "epiloc/anchor/map_sidecar.h"
 #include "epiloc/anchor/structure_anchor.h"
 #include "epiloc/io/kitti.h"
@@ -55,7 +56,6 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   inputs.every = 15;  // 7 anchors keep the test short; README: the whole drive, every 10th
   StructureAnchorOptions options;
   options.heading_error_deg = 5.0;
-  const EnuFrame enu(inputs.map_origin);
   // Errors of every anchor with a pose, ok or rejected (the along-track profile rejects them
   // all as weak along the road, README).
   struct Figures {
@@ -64,8 +64,11 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
     double seconds = 0.0;
     size_t anchors = 0;
   };
-  const auto run = [&](const StructureAnchorOptions& o, const char* label) {
-    const AnchorDriveResult result = AnchorDriveByStructure(inputs, vo, o);
+  const auto run_on = [&](const AnchorInputs& in, const Drive& truth_drive,
+                          const VoStructure& structure, const StructureAnchorOptions& o,
+                          const char* label) {
+    const EnuFrame enu(in.map_origin);
+    const AnchorDriveResult result = AnchorDriveByStructure(in, structure, o);
     Figures f;
     f.anchors = result.frames.size();
     for (const AnchorResult& a : result.frames) {
@@ -76,7 +79,7 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
                     AnchorStatusName(a.status).c_str(), a.message.c_str());
         continue;
       }
-      const auto truth = TrueMapFromCam(drive, a.timestamp_s, enu);
+      const auto truth = TrueMapFromCam(truth_drive, a.timestamp_s, enu);
       EXPECT_TRUE(truth.has_value());
       if (!truth) continue;
       f.horizontal.push_back((a.map_from_cam.translation - truth->translation).head<2>().norm());
@@ -98,6 +101,9 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
         f.seconds);
     return f;
   };
+  const auto run = [&](const StructureAnchorOptions& o, const char* label) {
+    return run_on(inputs, drive, vo, o, label);
+  };
   const Figures with_drift = run(options, "drift across anchors");
   StructureAnchorOptions no_drift_options = options;
   no_drift_options.scale_drift = ScaleDriftModel::kNone;
@@ -117,6 +123,38 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   // The drift model places the camera better than one similarity per window.
   EXPECT_LT(Median(with_drift.horizontal), Median(no_drift.horizontal));
   EXPECT_LT(Median(with_drift.rotation), Median(no_drift.rotation));
+
+  // Issue 17's protocol (the whole drive, every 10th frame) with the map and the truth on the
+  // track the LiDAR agrees with (lidar_track.h): the OXTS track steps 3.7 % short of the scans and
+  // climbs 0.4 deg more steeply, so its map and its camera poses disagree with each other by
+  // about as much as the targets allow.
+  const Drive cam0_drive = LoadDrive(cam0.out_dir);
+  const EnuFrame track_frame(cam0_drive.lidar.front().sensor_position);
+  const LidarTrack track = EstimateLidarTrack(cam0_drive, track_frame, LidarTrackOptions());
+  KittiImportOptions cam1_all = cam1;
+  cam1_all.stop = -1;
+  cam1_all.out_dir = dir / "cam1_all";
+  const Drive whole = ImportKitti(cam1_all);
+  WriteDrive(CorrectDriveTrack(cam0_drive, track_frame, track), dir / "cam0_lidar");
+  WriteDrive(CorrectDriveTrack(whole, track_frame, track), dir / "cam1_lidar");
+  const std::string lidar_map = dir / "map_lidar.ply";
+  BuildMap(dir / "cam0_lidar", lidar_map, std::nullopt, "", BuildMapOptions());
+  AnchorInputs lidar_inputs = inputs;
+  lidar_inputs.cloud_path = lidar_map;
+  lidar_inputs.map_origin = ReadMapSidecar(SidecarPath(lidar_map)).enu_origin;
+  lidar_inputs.drive_dir = dir / "cam1_lidar";
+  lidar_inputs.every = 10;
+  const Drive lidar_drive = LoadDrive(dir / "cam1_lidar");
+  const VoStructure whole_vo = VoStructure::FromResult(RunVisualOdometry(lidar_drive, VoOptions()));
+  const Figures lidar =
+      run_on(lidar_inputs, lidar_drive, whole_vo, options, "LiDAR-consistent track");
+  // Reached (2026-11-28): 2 of 16 ok (the others rejected by the neighbours' check or as weak
+  // along the road), horizontal median 0.125 m, max 0.388 m (frame 0, at the drive's start);
+  // rotation median 0.19 deg, max 0.43 deg; 0.6 s per anchor. The targets, but for the ok share.
+  ASSERT_GE(lidar.horizontal.size() * 4, lidar.anchors * 3);
+  EXPECT_LE(Median(lidar.horizontal), 0.2);
+  EXPECT_LE(*std::max_element(lidar.horizontal.begin(), lidar.horizontal.end()), 0.5);
+  EXPECT_LE(Median(lidar.rotation), 0.5);
 }
 
 }  // namespace

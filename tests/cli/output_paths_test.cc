@@ -103,6 +103,12 @@ TEST_F(OutputPaths, TheImagesAndScansADriveNamesAreInputs) {
                 dir_ / "elsewhere.png", {"--diagnostics", "input --drive", "elsewhere.png"});
   ExpectRefused(fmt::format("vo --drive {} --out {}", drive, dir_ / "drive2/scans/0.bin"),
                 dir_ / "drive2/scans/0.bin", {"--out", "input --drive", "0.bin"});
+  // The corrected drive written over the drive itself, or its steps CSV over a scan.
+  ExpectRefused(fmt::format("lidar-track --drive {0} --out {0}", drive), dir_ / "drive2/lidar.csv",
+                {"--out", "input --drive", "drive2"});
+  ExpectRefused(
+      fmt::format("lidar-track --drive {} --steps {}", drive, dir_ / "drive2/scans/0.bin"),
+      dir_ / "drive2/scans/0.bin", {"--steps", "input --drive", "0.bin"});
 }
 
 // Issue 18 (unseen inputs): outputs a command writes besides --out were not checked: `vo --points

@@ -33,6 +33,7 @@ int RunRender(int argc, char** argv);
 int RunAnchor(int argc, char** argv);
 int RunVo(int argc, char** argv);
 int RunGeoref(int argc, char** argv);
+int RunLidarTrack(int argc, char** argv);
 
 // Exit codes.
 constexpr int kExitOk = 0;
