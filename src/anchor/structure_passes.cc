@@ -2,6 +2,7 @@
 // anchors' scales, and the consensus of neighbouring anchors (structure_anchor.h).
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -43,7 +44,7 @@ std::optional<Placements> PlaceByNeighbours(const std::vector<PlacedAnchor>& anc
   for (size_t j = 0; j < anchors.size(); ++j) {
     if (anchors[j].segment != a.segment || (j == i && !include_self)) continue;
     if ((anchors[j].map_centre - a.map_centre).head<2>().norm() > 0.5 * window_m) continue;
-    p.each.push_back({(anchors[j].map_from_world * a.vo_centre).head<2>(), j});
+    p.each.push_back({anchors[j].Placing(a).head<2>(), j});
   }
   if (p.each.size() < 3) return std::nullopt;
   std::vector<double> xs, ys;
@@ -83,12 +84,21 @@ std::vector<Posed> PosedAnchors(const std::vector<size_t>& indices,
 std::vector<PlacedAnchor> Place(const std::vector<Posed>& posed,
                                 const VoStructure& vo,
                                 const AnchorDriveResult& out) {
+  auto path = std::make_shared<std::vector<Eigen::Vector3d>>();
+  for (const auto& pose : vo.poses) path->push_back(pose.world_from_cam.translation);
   std::vector<PlacedAnchor> placed;
   for (const Posed& p : posed) {
     const AnchorResult& a = out.frames[p.k];
     const Rigid3d& world_from_cam = vo.poses[static_cast<size_t>(p.pose)].world_from_cam;
-    placed.push_back({ImpliedSimilarity(a, world_from_cam), world_from_cam.translation,
-                      a.map_from_cam.translation, vo.SegmentOf(a.frame)});
+    PlacedAnchor one;
+    one.map_from_world = ImpliedSimilarity(a, world_from_cam);
+    one.vo_centre = world_from_cam.translation;
+    one.map_centre = a.map_from_cam.translation;
+    one.segment = vo.SegmentOf(a.frame);
+    one.scale_drift_per_m = std::isfinite(a.scale_drift_per_m) ? a.scale_drift_per_m : 0.0;
+    one.path = path;
+    one.path_index = p.pose;
+    placed.push_back(std::move(one));
   }
   return placed;
 }
@@ -264,6 +274,22 @@ void ApplyRotationConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
 }
 
 }  // namespace structure_internal
+
+Eigen::Vector3d PlacedAnchor::Placing(const PlacedAnchor& other) const {
+  if (scale_drift_per_m == 0.0 || !path || path != other.path || path_index < 0 ||
+      other.path_index < 0) {
+    return map_from_world * other.vo_centre;
+  }
+  // The path between the two cameras only, this anchor its pivot.
+  const size_t first = static_cast<size_t>(std::min(path_index, other.path_index));
+  const size_t last = static_cast<size_t>(std::max(path_index, other.path_index));
+  const ScaleDriftPath between(
+      std::vector<Eigen::Vector3d>(path->begin() + static_cast<std::ptrdiff_t>(first),
+                                   path->begin() + static_cast<std::ptrdiff_t>(last) + 1),
+      static_cast<size_t>(path_index) - first);
+  return map_from_world * between.Camera(static_cast<size_t>(other.path_index) - first,
+                                         scale_drift_per_m * map_from_world.scale);
+}
 
 std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<PlacedAnchor>& anchors,
                                                          double window_m) {

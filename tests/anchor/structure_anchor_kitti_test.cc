@@ -126,8 +126,8 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
 
   // Issue 17's protocol (the whole drive, every 10th frame) with the map and the truth on the
   // track the LiDAR agrees with (lidar_track.h): the OXTS track steps 3.7 % short of the scans and
-  // climbs 0.4 deg more steeply, so its map and its camera poses disagree with each other by
-  // about as much as the targets allow.
+  // travels 0.4 deg flatter than they do, so its map and its camera poses disagree with each other
+  // by about as much as the targets allow.
   const Drive cam0_drive = LoadDrive(cam0.out_dir);
   const EnuFrame track_frame(cam0_drive.lidar.front().sensor_position);
   const LidarTrack track = EstimateLidarTrack(cam0_drive, track_frame, LidarTrackOptions());

@@ -4,7 +4,9 @@
 #include "epiloc/anchor/structure_sift.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <memory>
 
 #include <gtest/gtest.h>
 
@@ -451,6 +453,65 @@ TEST(StructureAnchor, NeighbourDisagreementFindsTheAnchorItsNeighboursPlaceElsew
   EXPECT_FALSE(off[0].has_value());
   ASSERT_TRUE(off[2].has_value());
   EXPECT_NEAR(*off[2], 1.0, 1e-9);
+}
+
+// Anchors along a VO path whose scale drifts: each anchor's fit is exact at its own camera with
+// the drift (the scale s (1 + d x) at x metres along the path from it). Placed by the similarity
+// alone, a neighbour 20 m away lands d x^2 / 2 = 0.6 m off (d = 0.3 % per metre); with the drift
+// along the path between them (ScaleDriftPath), where it is, behind the anchor as well as ahead,
+// and on a curve; without a shared path, or with no drift, the similarity alone.
+TEST(StructureAnchor, PlacingANeighbourFollowsTheDriftAlongThePath) {
+  const double s0 = 2.0, per_m = 0.003;
+  // A VO path (world units) curving left, 0.5 units per pose; its metres at the start's scale.
+  std::vector<Eigen::Vector3d> centres;
+  for (int k = 0; k <= 60; ++k) {
+    const double a = 0.004 * k;
+    centres.emplace_back(0.5 * k * std::cos(a), 0.5 * k * std::sin(a), 0.0);
+  }
+  auto path = std::make_shared<std::vector<Eigen::Vector3d>>(centres);
+  const Eigen::Quaterniond r(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+  const Eigen::Vector3d t(10, -4, 1);
+  // The true map position of camera k: the drifting scale integrated along the path from 0.
+  std::vector<Eigen::Vector3d> truth(centres.size());
+  truth[0] = t + s0 * (r * centres[0]);
+  double metres = 0.0;
+  for (size_t k = 1; k < centres.size(); ++k) {
+    const Eigen::Vector3d step = centres[k] - centres[k - 1];
+    const double step_m = s0 * step.norm();
+    // The scale at the step's middle (its metres at the start's scale, to first order).
+    const double scale = s0 * (1.0 + per_m * (metres + 0.5 * step_m));
+    truth[k] = truth[k - 1] + scale * (r * step);
+    metres += step_m;
+  }
+  // Anchor at camera k: the similarity exact there, at the local scale.
+  const auto anchor = [&](int k) {
+    PlacedAnchor a;
+    double m = 0.0;
+    for (int j = 1; j <= k; ++j) m += s0 * (centres[j] - centres[j - 1]).norm();
+    a.map_from_world.scale = s0 * (1.0 + per_m * m);
+    a.map_from_world.rotation = r;
+    a.map_from_world.translation = truth[k] - a.map_from_world.scale * (r * centres[k]);
+    a.vo_centre = centres[k];
+    a.map_centre = truth[k];
+    // Per metre at the local scale: s_k (1 + d_k s_k x) = s0 (1 + per_m (m + s0 x)).
+    a.scale_drift_per_m = per_m / ((1.0 + per_m * m) * (1.0 + per_m * m));
+    a.path = path;
+    a.path_index = k;
+    return a;
+  };
+  const PlacedAnchor at0 = anchor(0), at20 = anchor(20), at40 = anchor(40);
+  // Camera 20 is 10 units (20 m) ahead of camera 0.
+  EXPECT_NEAR((at0.Placing(at20) - truth[20]).norm(), 0.0, 0.01);
+  EXPECT_NEAR((at40.Placing(at20) - truth[20]).norm(), 0.0, 0.01);  // behind
+  EXPECT_NEAR((at20.Placing(at40) - truth[40]).norm(), 0.0, 0.01);
+  EXPECT_NEAR((at20.Placing(at20) - truth[20]).norm(), 0.0, 1e-9);
+  // The similarity alone: about d x^2 / 2 off.
+  PlacedAnchor no_path = at0;
+  no_path.path = nullptr;
+  EXPECT_NEAR((no_path.Placing(at20) - truth[20]).norm(), per_m * 20.0 * 20.0 / 2.0, 0.05);
+  PlacedAnchor no_drift = at0;
+  no_drift.scale_drift_per_m = 0.0;
+  EXPECT_NEAR((no_drift.Placing(at20) - (at0.map_from_world * centres[20])).norm(), 0.0, 1e-12);
 }
 
 // Seven anchors 5 m apart: their similarities' rotations turned about three axes by up to

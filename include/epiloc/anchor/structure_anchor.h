@@ -40,6 +40,7 @@
 
 #include <cmath>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -158,10 +159,24 @@ struct PlacedAnchor {
   Eigen::Vector3d vo_centre = Eigen::Vector3d::Zero();   // its camera centre in the VO world
   Eigen::Vector3d map_centre = Eigen::Vector3d::Zero();  // and in the map
   int segment = 0;                                       // its VO segment
+  // The scale drift its fit applies (relative change of scale per metre of road, 0: none) and
+  // the path it drifts along: the VO camera centres in order (shared by the anchors of a drive)
+  // and the anchor's index among them (-1: not known; no drift applied).
+  double scale_drift_per_m = 0.0;
+  std::shared_ptr<const std::vector<Eigen::Vector3d>> path;
+  int path_index = -1;
+
+  // Where this anchor's fit places `other`'s camera centre in the map: its similarity applied to
+  // other's VO centre moved by this anchor's drift along the path between them (ScaleDriftPath,
+  // pivot = this anchor), as its own fit placed its structure; the similarity alone without a
+  // drift or a shared path. A VO whose scale drifts by 3 % per 10 m (the shared KITTI drive's)
+  // puts a camera 20 m away 0.6 m elsewhere without it.
+  Eigen::Vector3d Placing(const PlacedAnchor& other) const;
 };
 // Per anchor, the horizontal distance from its map centre to the median (per axis) of the
-// placements of its VO centre by the other anchors of its segment whose map centres lie within
-// window_m / 2 of its own; nullopt with fewer than three of them.
+// placements of its VO centre (PlacedAnchor::Placing, with their drift) by the other anchors of
+// its segment whose map centres lie within window_m / 2 of its own; nullopt with fewer than three
+// of them.
 std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<PlacedAnchor>& anchors,
                                                          double window_m);
 // Per anchor, the rotation consensus of its neighbours (StructureAnchorOptions::
