@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cmath>
 #include <mutex>
+#include <unordered_map>
 #include <utility>
 
 #include <spdlog/spdlog.h>
@@ -129,9 +130,6 @@ LidarTrack EstimateLidarTrack(const Drive& drive,
   options.Check();
   const size_t n = drive.lidar.size();
   if (n < 2) Throw("{}: the LiDAR track needs at least two scans, the drive has {}", drive.dir, n);
-  std::vector<PointCloud> scans(n);
-  ParallelFor(static_cast<int64_t>(n), options.num_threads,
-              [&](int64_t i) { scans[i] = ReadThinnedScan(drive, drive.lidar[i], options); });
   std::vector<Rigid3d> map_from_sensor(n);
   for (size_t i = 0; i < n; ++i) {
     map_from_sensor[i] = anchor_internal::MapFromSample(map_frame, drive.lidar[i].sensor_position,
@@ -145,7 +143,11 @@ LidarTrack EstimateLidarTrack(const Drive& drive,
   std::mutex progress_mutex;
   ParallelFor(static_cast<int64_t>(n - 1), options.num_threads, [&](int64_t i) {
     const Rigid3d track_a_from_b = map_from_sensor[i].Inverse() * map_from_sensor[i + 1];
-    out.steps[i] = RegisterPair(scans[i], scans[i + 1], track_a_from_b, options, &lidar_steps[i]);
+    // Each pair reads its own two scans (each scan is read twice): memory stays bounded on a
+    // long drive.
+    const PointCloud a = ReadThinnedScan(drive, drive.lidar[i], options);
+    const PointCloud b = ReadThinnedScan(drive, drive.lidar[i + 1], options);
+    out.steps[i] = RegisterPair(a, b, track_a_from_b, options, &lidar_steps[i]);
     out.steps[i].from_scan = drive.lidar[i].scan;
     out.steps[i].to_scan = drive.lidar[i + 1].scan;
     const int64_t d = ++done;
@@ -195,14 +197,16 @@ Drive CorrectDriveTrack(const Drive& drive, const EnuFrame& map_frame, const Lid
   }
   // Each of the drive's scans by its number (another camera's import of the same recording may
   // hold a part of them).
+  std::unordered_map<int64_t, size_t> track_index;
+  for (size_t j = 0; j < track.scans.size(); ++j) track_index.emplace(track.scans[j], j);
   std::vector<size_t> index_of(drive.lidar.size());
   for (size_t i = 0; i < drive.lidar.size(); ++i) {
-    const auto it = std::find(track.scans.begin(), track.scans.end(), drive.lidar[i].scan);
-    if (it == track.scans.end()) {
+    const auto it = track_index.find(drive.lidar[i].scan);
+    if (it == track_index.end()) {
       Throw("{}: scan {} is not in the LiDAR track given (not this recording's track?)", drive.dir,
             drive.lidar[i].scan);
     }
-    const size_t j = static_cast<size_t>(it - track.scans.begin());
+    const size_t j = it->second;
     if (std::abs(track.timestamps_s[j] - drive.lidar[i].timestamp_s) > 1e-6) {
       Throw("{}: scan {} was taken at {:.6f} s, the LiDAR track's at {:.6f} s", drive.dir,
             drive.lidar[i].scan, drive.lidar[i].timestamp_s, track.timestamps_s[j]);

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "anchor_test_util.h"
@@ -105,6 +106,25 @@ TEST(LidarTrack, FindsAndUndoesAShortClimbingTrack) {
   EXPECT_LT(max_scan, 0.05);
   EXPECT_LT(max_truth, 0.08);  // between scans: linear in time, the car turns
   EXPECT_EQ(corrected.gnss.samples, drive.gnss.samples);  // the sensor under test is left alone
+}
+
+// A scan that is not what its pose says (here another place's scan file): the pairs with it do
+// not register, keep the track's steps, and say why; the others are unaffected.
+TEST(LidarTrack, APairThatDoesNotRegisterKeepsTheTracksStep) {
+  Drive survey = LoadDrive(SharedSyntheticWorld() + "/survey");
+  ASSERT_GE(survey.lidar.size(), 5u);
+  survey.lidar[3].path = survey.ScanPath(survey.lidar[0]);
+  const EnuFrame frame(SynthOrigin());
+  const LidarTrack track = EstimateLidarTrack(survey, frame, LidarTrackOptions());
+  EXPECT_EQ(track.num_registered, static_cast<int>(track.steps.size()) - 2);
+  for (size_t i = 0; i < track.steps.size(); ++i) {
+    const LidarTrackStep& s = track.steps[i];
+    EXPECT_EQ(s.registered, i != 2 && i != 3) << i;
+    if (!s.registered) {
+      EXPECT_THAT(s.message, ::testing::HasSubstr("not registered")) << i;
+    }
+  }
+  EXPECT_LT(track.max_correction_m, 0.03);
 }
 
 TEST(LidarTrack, RejectsBadInput) {
