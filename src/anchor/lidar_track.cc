@@ -174,6 +174,8 @@ LidarTrack EstimateLidarTrack(const Drive& drive,
     if (s.lidar_m > 0.5) {
       pitches.push_back(s.pitch_deg);
       headings.push_back(s.heading_deg);
+      out.max_abs_pitch_deg = std::max(out.max_abs_pitch_deg, std::abs(s.pitch_deg));
+      out.max_abs_heading_deg = std::max(out.max_abs_heading_deg, std::abs(s.heading_deg));
     }
   }
   out.median_pitch_deg = Median(pitches);

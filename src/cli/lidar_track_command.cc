@@ -86,11 +86,12 @@ int RunLidarTrack(int argc, char** argv) {
   std::printf(
       "lidar-track: %d of %zu pairs registered; the track's steps are %.2f %% of the scans' "
       "(%.2f m against %.2f m); its direction of travel differs from theirs by %+.2f deg in "
-      "pitch and %+.2f deg in heading (medians); turns agree within %.2f deg; corrections up to "
-      "%.2f m\n",
+      "pitch and %+.2f deg in heading (medians; up to %.2f and %.2f deg); turns agree within "
+      "%.2f deg; corrections up to %.2f m\n",
       track.num_registered, track.steps.size(), 100.0 * ratio, track.track_length_m,
       track.lidar_length_m, track.median_pitch_deg, track.median_heading_deg,
-      track.max_turn_difference_deg, track.max_correction_m);
+      track.max_abs_pitch_deg, track.max_abs_heading_deg, track.max_turn_difference_deg,
+      track.max_correction_m);
   for (const LidarTrackStep& s : track.steps) {
     if (!s.registered) spdlog::warn("scans {} -> {}: {}", s.from_scan, s.to_scan, s.message);
   }

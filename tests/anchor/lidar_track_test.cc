@@ -37,6 +37,8 @@ TEST(LidarTrack, AnExactTrackNeedsNoCorrection) {
   EXPECT_NEAR(track.track_length_m / track.lidar_length_m, 1.0, 0.002);
   EXPECT_NEAR(track.median_pitch_deg, 0.0, 0.05);
   EXPECT_NEAR(track.median_heading_deg, 0.0, 0.05);
+  EXPECT_LT(track.max_abs_pitch_deg, 0.1);
+  EXPECT_LT(track.max_abs_heading_deg, 0.1);
   EXPECT_LT(track.max_turn_difference_deg, 0.05);
   EXPECT_LT(track.max_correction_m, 0.03);
   for (const LidarTrackStep& s : track.steps) {
@@ -178,6 +180,7 @@ TEST(LidarTrack, TheSharedKittiDrivesTrackAgainstItsScans) {
   EXPECT_LT(track.track_length_m / track.lidar_length_m, 0.975);
   EXPECT_LT(track.median_pitch_deg, -0.25);
   EXPECT_GT(track.median_pitch_deg, -0.6);
+  EXPECT_GT(track.max_abs_heading_deg, 2.0);  // in the square, frames 55-90
   EXPECT_LT(track.max_turn_difference_deg, 0.2);
   for (const LidarTrackStep& s : track.steps) EXPECT_GT(s.inlier_share, 0.5);
 }

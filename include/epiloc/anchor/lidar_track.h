@@ -80,6 +80,8 @@ struct LidarTrack {
   double track_length_m = 0.0;      // ... and from the track
   double median_pitch_deg = 0.0;    // over the registered steps longer than 0.5 m
   double median_heading_deg = 0.0;  // (shorter ones have no direction to speak of)
+  double max_abs_pitch_deg = 0.0;   // and the largest of each, in size
+  double max_abs_heading_deg = 0.0;
   double max_turn_difference_deg = 0.0;
   double max_correction_m = 0.0;  // largest |correction_m|
 };
