@@ -328,6 +328,9 @@ int RunSynth(int argc, char** argv) {
   app.add_option("--lidar-noise", lidar.range_noise_m,
                  "LiDAR map: range noise, standard deviation, metres")
       ->capture_default_str();
+  app.add_flag("--lidar-scan-files", options.lidar_scan_files,
+               "Also write each scan (sensor frame) into survey/lidar/ and list them in the "
+               "survey's lidar.csv with their exact poses (for build-map and lidar-track)");
   bool query_only = false;
   app.add_flag("--query-only", query_only,
                "Write the query drive only (not the survey's frames): another query of a world "
