@@ -68,6 +68,27 @@ std::vector<double> ScaleLevels(const StructureRegistrationOptions& registration
   return levels;
 }
 
+// The anchors `redo` names (index into AnchorDriveResult::frames, restart) registered again, in
+// parallel; one that gets no pose keeps its fit. The consensus pass's note goes into the message
+// with `consensus_note`, and stays where the fit replaced carried it.
+void RegisterAgain(const DriveAnchoring& run,
+                   const std::vector<std::pair<size_t, Restart>>& redo,
+                   bool consensus_note,
+                   AnchorDriveResult* out) {
+  ParallelFor(static_cast<int64_t>(redo.size()), run.options.num_threads, [&](int64_t r) {
+    const auto& [k, restart] = redo[static_cast<size_t>(r)];
+    AnchorResult again = AnchorOne(run, run.indices[k], &restart);
+    if (!again.has_pose) return;
+    const AnchorResult& before = out->frames[k];
+    again.seconds += before.seconds;
+    if (consensus_note || before.message.find(kConsensusNote) != std::string::npos) {
+      again.message =
+          again.message.empty() ? kConsensusNote : again.message + "; " + kConsensusNote;
+    }
+    out->frames[k] = again;
+  });
+}
+
 // The anchors with a pose and a VO pose, in frame order.
 std::vector<Posed> PosedAnchors(const std::vector<size_t>& indices,
                                 const std::vector<int>& pose_of,
@@ -177,15 +198,7 @@ void ApplyConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
                     {placed[nearest].map_from_world, std::isfinite(drift) ? drift : 0.0,
                      options.refine_distances_m}});
   }
-  ParallelFor(static_cast<int64_t>(redo.size()), options.num_threads, [&](int64_t r) {
-    const auto& [k, restart] = redo[static_cast<size_t>(r)];
-    AnchorResult again = AnchorOne(run, run.indices[k], &restart);
-    if (!again.has_pose) return;
-    again.seconds += out->frames[k].seconds;
-    const std::string note = kConsensusNote;
-    again.message = again.message.empty() ? note : again.message + "; " + note;
-    out->frames[k] = again;
-  });
+  RegisterAgain(run, redo, true, out);
   spdlog::debug("structure anchors: {} of {} posed re-registered from their neighbours' consensus",
                 redo.size(), posed.size());
 }
@@ -225,19 +238,17 @@ void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out) 
 
   // The levels that free the scale: the drift changes the scale at the camera.
   const std::vector<double> levels = ScaleLevels(options.registration);
-  ParallelFor(static_cast<int64_t>(posed.size()), options.num_threads, [&](int64_t r) {
-    const size_t i = static_cast<size_t>(r);
+  std::vector<std::pair<size_t, Restart>> redo;
+  for (size_t i = 0; i < posed.size(); ++i) {
     const size_t k = posed[i].k;
     Restart restart;
     restart.sim = ImpliedSimilarity(out->frames[k],
                                     vo.poses[static_cast<size_t>(posed[i].pose)].world_from_cam);
     restart.drift_per_m = drift[i];
     restart.levels_m = levels;
-    AnchorResult again = AnchorOne(run, run.indices[k], &restart);
-    if (!again.has_pose) return;
-    again.seconds += out->frames[k].seconds;
-    out->frames[k] = again;
-  });
+    redo.push_back({k, restart});
+  }
+  RegisterAgain(run, redo, false, out);
 }
 
 // The rotation consensus pass (StructureAnchorOptions::rotation_consensus).
@@ -248,8 +259,8 @@ void ApplyRotationConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
   const std::vector<PlacedAnchor> placed = Place(posed, vo, *out);
   const std::vector<Eigen::Quaterniond> consensus = ConsensusRotations(placed, options.window_m);
   const std::vector<double> levels = ScaleLevels(options.registration);
-  ParallelFor(static_cast<int64_t>(posed.size()), options.num_threads, [&](int64_t r) {
-    const size_t i = static_cast<size_t>(r);
+  std::vector<std::pair<size_t, Restart>> redo;
+  for (size_t i = 0; i < posed.size(); ++i) {
     const size_t k = posed[i].k;
     // The camera stays where its own fit put it; the structure turns about it.
     Restart restart;
@@ -261,16 +272,10 @@ void ApplyRotationConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
     restart.drift_per_m = std::isfinite(drift) ? drift : 0.0;
     restart.levels_m = levels;
     restart.hold_rotation = true;
-    AnchorResult again = AnchorOne(run, run.indices[k], &restart);
-    if (!again.has_pose) return;
-    again.seconds += out->frames[k].seconds;
-    // The consensus pass's note stays (the fit it started stays in place).
-    if (out->frames[k].message.find(kConsensusNote) != std::string::npos) {
-      again.message =
-          again.message.empty() ? kConsensusNote : again.message + "; " + kConsensusNote;
-    }
-    out->frames[k] = again;
-  });
+    redo.push_back({k, restart});
+  }
+  // The consensus pass's note stays (the fit it started stays in place).
+  RegisterAgain(run, redo, false, out);
 }
 
 }  // namespace structure_internal
