@@ -17,6 +17,23 @@
 
 namespace epiloc {
 
+#ifdef EPILOC_SHARED_DATA_DIR
+// The shared KITTI raw drive (2011_09_26, drive 0005) the real-data tests read, beside the
+// checkout (../shared/data); those tests skip when it is absent (EPILOC_SKIP_UNLESS_EXISTS).
+inline std::filesystem::path KittiRawDrive() {
+  return std::filesystem::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw" / "2011_09_26" /
+         "2011_09_26_drive_0005_sync";
+}
+
+// Skips the running test when `path` (shared real data) does not exist.
+#define EPILOC_SKIP_UNLESS_EXISTS(path)                                             \
+  do {                                                                              \
+    if (!std::filesystem::exists(path)) {                                           \
+      GTEST_SKIP() << (path) << " not found (real-data test needs ../shared/data)"; \
+    }                                                                               \
+  } while (0)
+#endif  // EPILOC_SHARED_DATA_DIR
+
 // Whether this build runs under AddressSanitizer (it reserves terabytes of shadow memory and
 // holds freed blocks in a quarantine: memory limits and resident-memory bounds do not apply).
 #if defined(__SANITIZE_ADDRESS__)

@@ -161,9 +161,8 @@ TEST(LidarTrack, RejectsBadInput) {
 // that makes it worse, is noticed.
 TEST(LidarTrack, TheSharedKittiDrivesTrackAgainstItsScans) {
   namespace fs = std::filesystem;
-  const fs::path raw =
-      fs::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
-  if (!fs::exists(raw)) GTEST_SKIP() << raw << " not found (real-data test needs ../shared/data)";
+  const fs::path raw = KittiRawDrive();
+  EPILOC_SKIP_UNLESS_EXISTS(raw);
   KittiImportOptions import;
   import.raw_drive_dir = raw.string();
   const Drive drive = ImportKitti(import);

@@ -28,9 +28,8 @@ double Median(std::vector<double> v) {
 }
 
 TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
-  const fs::path raw =
-      fs::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
-  if (!fs::exists(raw)) GTEST_SKIP() << raw << " not found (real-data test needs ../shared/data)";
+  const fs::path raw = KittiRawDrive();
+  EPILOC_SKIP_UNLESS_EXISTS(raw);
   TempDir dir;
   KittiImportOptions cam0;
   cam0.raw_drive_dir = raw.string();

@@ -151,8 +151,7 @@ TEST(Camera, CheckAcceptsRealCalibrations) {
   wide.distortion = {0.05, -0.01, 0.0, 0.0, 0.0};  // mild pincushion
   EXPECT_NO_THROW(wide.Check("wide"));
   // The unrectified cameras of the shared KITTI drive (K_0N, D_0N of calib_cam_to_cam.txt).
-  const std::string calib =
-      std::string(EPILOC_SHARED_DATA_DIR) + "/kitti_raw/2011_09_26/calib_cam_to_cam.txt";
+  const std::string calib = (KittiRawDrive().parent_path() / "calib_cam_to_cam.txt").string();
   std::ifstream in(calib);
   if (!in) GTEST_SKIP() << calib << " is absent";
   std::map<std::string, std::vector<double>> values;

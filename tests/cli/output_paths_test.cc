@@ -231,7 +231,7 @@ TEST_F(OutputPaths, ImportKittiRefusesAnOutputInsideTheInput) {
 
   // With the real KITTI drive (a copy of its tree made of links, so nothing can reach the shared
   // data): the import wrote its drive inside the raw folder.
-  const std::string shared = std::string(EPILOC_SHARED_DATA_DIR) + "/kitti_raw/2011_09_26";
+  const std::string shared = KittiRawDrive().parent_path().string();
   if (!fs::is_directory(shared + "/2011_09_26_drive_0005_sync")) {
     GTEST_SKIP() << shared << " is absent";
   }

@@ -52,9 +52,8 @@ double MaxHorizontal(const ResultTable& rows, const std::string& method, const D
 }
 
 TEST(PipelineKitti, MapAnchorsVoGeorefDatabaseLocalize) {
-  const fs::path raw =
-      fs::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
-  if (!fs::exists(raw)) GTEST_SKIP() << raw << " not found (real-data test needs ../shared/data)";
+  const fs::path raw = KittiRawDrive();
+  EPILOC_SKIP_UNLESS_EXISTS(raw);
   TempDir dir;
   KittiImportOptions cam0;
   cam0.raw_drive_dir = raw.string();

@@ -243,9 +243,8 @@ TEST(PipelineStructure, SynthScanFilesFeedLidarTrack) {
 // the ground truth agree with each other.
 TEST(PipelineStructure, KittiMapVoAnchorGeorefDatabaseLocalize) {
   namespace fs = std::filesystem;
-  const fs::path raw =
-      fs::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
-  if (!fs::exists(raw)) GTEST_SKIP() << raw << " not found (real-data test needs ../shared/data)";
+  const fs::path raw = KittiRawDrive();
+  EPILOC_SKIP_UNLESS_EXISTS(raw);
   TempDir dir;
   const std::string oxts0 = dir / "oxts0", oxts1 = dir / "oxts1";
   RunEpiloc(fmt::format("import-kitti --raw {} --camera 0 --out {}", raw.string(), oxts0));

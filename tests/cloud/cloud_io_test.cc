@@ -123,10 +123,8 @@ TEST(CloudIo, ReadsKittiScanBytes) {
 }
 
 TEST(CloudIo, ReadsRealKittiScan) {
-  const std::string path = std::string(EPILOC_SHARED_DATA_DIR) +
-                           "/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync/velodyne_points/data/"
-                           "0000000000.bin";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "no KITTI scan at " << path;
+  const std::string path = (KittiRawDrive() / "velodyne_points/data/0000000000.bin").string();
+  EPILOC_SKIP_UNLESS_EXISTS(path);
   CloudReadStats stats;
   const PointCloud cloud = ReadPointCloud(path, CloudReadOptions(), &stats);
   EXPECT_EQ(stats.num_records, static_cast<int64_t>(std::filesystem::file_size(path) / 16));

@@ -14,8 +14,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kRawDrive =
-    std::string(EPILOC_SHARED_DATA_DIR) + "/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
+const std::string kRawDrive = KittiRawDrive().string();
 
 TEST(KittiEvaluation, GpsBaselineMatchesTheSimulatedNoise) {
   if (!fs::is_directory(kRawDrive)) {

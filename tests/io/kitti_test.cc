@@ -17,8 +17,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kRawDrive =
-    std::string(EPILOC_SHARED_DATA_DIR) + "/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
+const std::string kRawDrive = KittiRawDrive().string();
 
 // A tiny KITTI tree with identity calibration (IMU = velodyne = camera 0 axes), 40x30 images,
 // camera 1 0.5 m along +x, and OXTS records heading north (yaw 90 deg).

@@ -18,6 +18,7 @@
 #include "epiloc/io/kitti.h"
 #include "epiloc/survey/build_db.h"
 #include "epiloc/synth/drive_gen.h"
+#include "test_util.h"
 
 namespace epiloc {
 namespace {
@@ -136,9 +137,8 @@ TEST(Localizer, SyntheticStreetNoiseFreeQuery) {
 // The development scenario: survey = camera 0, frames 0:154:2 (RTK); query = camera 1
 // (0.54 m to the side), frames 1:154:2, GPS with 3 m noise, seed 1.
 TEST(Localizer, KittiDevelopmentScenario) {
-  const fs::path raw =
-      fs::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
-  if (!fs::exists(raw)) GTEST_SKIP() << raw << " not found (real-data test needs ../shared/data)";
+  const fs::path raw = KittiRawDrive();
+  EPILOC_SKIP_UNLESS_EXISTS(raw);
   const fs::path dir = TempDir("kitti");
   KittiImportOptions survey;
   survey.raw_drive_dir = raw.string();

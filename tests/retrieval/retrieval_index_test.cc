@@ -23,6 +23,7 @@
 #include "epiloc/io/kitti.h"
 #include "epiloc/survey/build_db.h"
 #include "epiloc/synth/drive_gen.h"
+#include "test_util.h"
 
 namespace epiloc {
 namespace {
@@ -176,9 +177,8 @@ TEST(SyntheticRetrieval, TooLittleDataLeavesNoIndex) {
 // KITTI raw 2011_09_26 drive 0005: the left grey camera's even frames as the database, the right
 // camera's odd frames as queries (0.54 m to the side, half a frame later).
 TEST(KittiRetrieval, RightCameraFramesFindTheLeftCameraFrames) {
-  const fs::path raw =
-      fs::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw" / "2011_09_26" / "2011_09_26_drive_0005_sync";
-  if (!fs::exists(raw)) GTEST_SKIP() << "no KITTI drive at " << raw;
+  const fs::path raw = KittiRawDrive();
+  EPILOC_SKIP_UNLESS_EXISTS(raw);
   const fs::path dir = TempDir("kitti");
   KittiImportOptions import;
   import.raw_drive_dir = raw.string();

@@ -150,9 +150,8 @@ TEST(VisualOdometry, SyntheticDriveKeepsItsShape) {
 // default): rms 0.561 m (0.82 %), max 1.256 m (1.83 %); against the raw positions rms 0.639 m
 // (0.92 %), max 1.146 m (1.66 %). 11-20 frames/s on 2 busy cores (global BA 0.8 s).
 TEST(VisualOdometry, KittiCamera1Drift) {
-  const fs::path raw =
-      fs::path(EPILOC_SHARED_DATA_DIR) / "kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
-  if (!fs::exists(raw)) GTEST_SKIP() << raw << " not found (real-data test needs ../shared/data)";
+  const fs::path raw = KittiRawDrive();
+  EPILOC_SKIP_UNLESS_EXISTS(raw);
   TempDir dir;
   KittiImportOptions import;
   import.raw_drive_dir = raw.string();
