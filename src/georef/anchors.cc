@@ -1,6 +1,8 @@
 #include "epiloc/georef/anchors.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <random>
 
 #include "epiloc/core/csv.h"
@@ -39,6 +41,9 @@ AnchorSet ReadAnchors(const std::string& path, const std::string& method) {
   const ResultTable table = ReadResultCsv(path);
   AnchorSet set;
   set.path = path;
+  const auto scale_column =
+      std::find(table.extra_columns.begin(), table.extra_columns.end(), "scale_m_per_unit");
+  const size_t scale_at = static_cast<size_t>(scale_column - table.extra_columns.begin());
   bool any = false;
   for (const ResultRow& row : table.rows) {
     if (row.method != method) continue;
@@ -52,6 +57,15 @@ AnchorSet ReadAnchors(const std::string& path, const std::string& method) {
     anchor.timestamp_s = row.timestamp_s;
     anchor.position = row.position;
     anchor.enu_from_cam = row.enu_from_cam;
+    if (scale_at < row.extra.size() && !row.extra[scale_at].empty()) {
+      // A scale that does not parse or is not positive is no scale (the other columns decide
+      // whether the row is an anchor).
+      char* end = nullptr;
+      const double scale = std::strtod(row.extra[scale_at].c_str(), &end);
+      if (end && *end == '\0' && std::isfinite(scale) && scale > 0.0) {
+        anchor.scale_m_per_unit = scale;
+      }
+    }
     anchor.line = row.line;
     set.anchors.push_back(anchor);
   }

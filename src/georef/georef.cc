@@ -96,6 +96,7 @@ GeorefResult Georeference(const ImportedTrajectory& trajectory,
     pair.timestamp_s = a.timestamp_s;
     pair.vo_from_cam = vo_poses[i];
     pair.centre_in_enu = enu.ToEnu(a.position);
+    pair.scale_m_per_unit = a.scale_m_per_unit;
     if (a.enu_from_cam) {
       pair.enu_from_cam =
           Eigen::Quaterniond(enu.EnuFromLocalEnu(a.position) * a.enu_from_cam->toRotationMatrix())

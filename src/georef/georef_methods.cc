@@ -30,7 +30,9 @@ Rigid3d GeorefTransform::Map(double timestamp_s, const Rigid3d& vo_from_cam, dou
     const size_t after = static_cast<size_t>(it - times.begin());
     k = std::min(after > 0 ? after - 1 : 0, intervals.size() - 1);
   }
-  const Sim3d& sim = intervals[k];
+  const bool first = !times.empty() && timestamp_s < times.front();
+  const bool last = !times.empty() && timestamp_s > times.back();
+  const Sim3d& sim = first && before ? *before : last && after ? *after : intervals[k];
   if (scale) *scale = sim.scale;
   Eigen::Quaterniond enu_from_vo = sim.rotation;
   if (!rotations.empty()) {
@@ -43,7 +45,19 @@ Rigid3d GeorefTransform::Map(double timestamp_s, const Rigid3d& vo_from_cam, dou
       enu_from_vo = rotations[k].slerp(w, rotations[k + 1]);
     }
   }
-  return Rigid3d((enu_from_vo * vo_from_cam.rotation).normalized(), sim * vo_from_cam.translation);
+  Eigen::Vector3d centre = sim * vo_from_cam.translation;
+  if (!ramps.empty() && !first && !last) {
+    // X = X_a + s R (integral_0^l r * chord + r(l) * (x - x_a - l chord)), r the relative scale.
+    const Ramp& r = ramps[k];
+    const Eigen::Vector3d d = vo_from_cam.translation - r.vo_start;
+    const double l = std::clamp(d.dot(r.vo_chord) / r.vo_chord.squaredNorm(), 0.0, 1.0);
+    const double at = r.start + (r.end - r.start) * l;
+    const double integral = r.start * l + 0.5 * (r.end - r.start) * l * l;
+    centre = r.enu_start +
+             sim.scale * (sim.rotation * (integral * r.vo_chord + at * (d - l * r.vo_chord)));
+    if (scale) *scale = sim.scale * at;
+  }
+  return Rigid3d((enu_from_vo * vo_from_cam.rotation).normalized(), centre);
 }
 
 GeorefTransform PaperTransform(const std::vector<AnchorPair>& anchors, int second_anchor) {
@@ -142,6 +156,49 @@ GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
     sim.translation = a.centre_in_enu - sim.scale * (sim.rotation * a.vo_from_cam.translation);
     transform.intervals.push_back(sim);
   }
+  // The ends: the end anchor's rotation, and its own scale where the anchors' scales are this
+  // trajectory's (the header).
+  std::vector<double> ratios;
+  for (size_t k = 0; k + 1 < kept.size(); ++k) {
+    if (kept[k]->scale_m_per_unit && kept[k + 1]->scale_m_per_unit) {
+      ratios.push_back(transform.intervals[k].scale /
+                       (0.5 * (*kept[k]->scale_m_per_unit + *kept[k + 1]->scale_m_per_unit)));
+    }
+  }
+  bool own_scales = false;
+  if (!ratios.empty()) {
+    std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
+    const double median = ratios[ratios.size() / 2];
+    constexpr double kMaxRatio = 1.25;
+    own_scales = median >= 1.0 / kMaxRatio && median <= kMaxRatio;
+  }
+  const auto end_sim = [&](const AnchorPair& a, const Sim3d& interval,
+                           const Eigen::Quaterniond& r) {
+    Sim3d sim;
+    sim.scale = own_scales && a.scale_m_per_unit ? *a.scale_m_per_unit : interval.scale;
+    sim.rotation = r;
+    sim.translation = a.centre_in_enu - sim.scale * (sim.rotation * a.vo_from_cam.translation);
+    return sim;
+  };
+  if (own_scales) {
+    for (size_t k = 0; k + 1 < kept.size(); ++k) {
+      const AnchorPair& a = *kept[k];
+      const AnchorPair& b = *kept[k + 1];
+      GeorefTransform::Ramp ramp;
+      ramp.vo_start = a.vo_from_cam.translation;
+      ramp.vo_chord = b.vo_from_cam.translation - a.vo_from_cam.translation;
+      ramp.enu_start = a.centre_in_enu;
+      if (a.scale_m_per_unit && b.scale_m_per_unit) {
+        const double mean = 0.5 * (*a.scale_m_per_unit + *b.scale_m_per_unit);
+        ramp.start = *a.scale_m_per_unit / mean;
+        ramp.end = *b.scale_m_per_unit / mean;
+      }
+      transform.ramps.push_back(ramp);
+    }
+  }
+  transform.before =
+      end_sim(*kept.front(), transform.intervals.front(), transform.rotations.front());
+  transform.after = end_sim(*kept.back(), transform.intervals.back(), transform.rotations.back());
   return transform;
 }
 

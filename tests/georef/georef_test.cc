@@ -347,6 +347,113 @@ TEST(Georef, PiecewiseSkipsCloseAnchorsAndRejectsAStandingVo) {
   ExpectError([&] { PiecewiseTransform(standing); }, {"the VO did not move"});
 }
 
+// Anchors that carry their own scale of the trajectory (structure anchors): inside each interval
+// the scale goes from one anchor's to the next's, and beyond the end anchors the trajectory goes
+// on with the end anchor's rotation and scale; scales of another trajectory (other units) are
+// not taken.
+TEST(Georef, PiecewiseTakesTheAnchorsOwnScalesInsideAndBeyondThem) {
+  const int frames = 201;
+  const SyntheticRun run = MakeRun(frames, 0.5, 3.0);
+  // Anchors every 20 m from frame 20 to 180: 20 frames to extrapolate at either end.
+  std::vector<AnchorPair> plain;
+  for (size_t i = 20; i <= 180; i += 20) {
+    plain.push_back(
+        MakeAnchor(run.times[i], run.vo_from_cam[i], run.centre_in_enu[i], run.enu_from_cam[i]));
+  }
+  const auto with_scales = [&](double unit) {
+    std::vector<AnchorPair> anchors = plain;
+    for (size_t k = 0; k < anchors.size(); ++k) {
+      // Metres per VO unit at the anchor's frame (MakeRun's drifting scale).
+      const double w = static_cast<double>(20 + 20 * k) / frames;
+      anchors[k].scale_m_per_unit = unit / (0.2 * (1.0 + 0.5 * w));
+    }
+    return anchors;
+  };
+  const GeorefTransform without = PiecewiseTransform(plain);
+  const GeorefTransform with = PiecewiseTransform(with_scales(1.0));
+  const GeorefTransform other = PiecewiseTransform(with_scales(3.0));
+  EXPECT_TRUE(without.ramps.empty());
+  EXPECT_EQ(with.ramps.size(), with.intervals.size());
+  EXPECT_TRUE(other.ramps.empty());
+  // Inside (frames 20-180) and beyond the ends (0-19, 181-200), the largest error.
+  const auto errors = [&](const GeorefTransform& transform) {
+    double inside = 0.0, beyond = 0.0;
+    for (size_t i = 0; i < run.times.size(); ++i) {
+      const double d =
+          (transform.Map(run.times[i], run.vo_from_cam[i]).translation - run.centre_in_enu[i])
+              .norm();
+      (i >= 20 && i <= 180 ? inside : beyond) = std::max(i >= 20 && i <= 180 ? inside : beyond, d);
+    }
+    return std::make_pair(inside, beyond);
+  };
+  const auto [inside_without, beyond_without] = errors(without);
+  const auto [inside_with, beyond_with] = errors(with);
+  const auto [inside_other, beyond_other] = errors(other);
+  std::printf(
+      "max error inside / beyond the anchors: chord scales %.3f / %.3f m, the anchors' own "
+      "%.3f / %.3f m, another trajectory's %.3f / %.3f m\n",
+      inside_without, beyond_without, inside_with, beyond_with, inside_other, beyond_other);
+  // Inside: L dk / 8 = 20 m * 5 % / 8 = 0.125 m with chord scales; with the anchors' scales only
+  // the scale's curvature (1 / (1 + 0.5 w) is not linear) and the VO frame's turn remain.
+  EXPECT_GT(inside_without, 0.1);
+  EXPECT_LT(inside_with, 0.2 * inside_without);
+  // Beyond: 20 m with the end interval's mean scale, 2.5 % off at the end anchor and drifting
+  // on, against the end anchor's own scale, drifting on.
+  EXPECT_LT(beyond_with, 0.6 * beyond_without);
+  // Both stay exact at the anchors.
+  for (const AnchorPair& a : with_scales(1.0)) {
+    EXPECT_LT((with.Map(a.timestamp_s, a.vo_from_cam).translation - a.centre_in_enu).norm(), 1e-9);
+  }
+  // Another trajectory's scales (three times its units): the chord scales as without; the ends
+  // take the end anchors' rotation either way.
+  EXPECT_NEAR(inside_other, inside_without, 1e-12);
+  EXPECT_NEAR(beyond_other, beyond_without, 1e-12);
+  // An anchor without a scale: its intervals keep a constant scale.
+  std::vector<AnchorPair> partial = with_scales(1.0);
+  partial[4].scale_m_per_unit.reset();
+  const GeorefTransform some = PiecewiseTransform(partial);
+  ASSERT_EQ(some.ramps.size(), some.intervals.size());
+  EXPECT_EQ(some.ramps[3].start, 1.0);
+  EXPECT_EQ(some.ramps[4].end, 1.0);
+  EXPECT_NE(some.ramps[5].start, 1.0);
+}
+
+// The anchors file's scale_m_per_unit column: a positive number is the anchor's scale; empty,
+// not a number, or not positive is none (the row stays an anchor).
+TEST(Georef, ReadsTheAnchorsOwnScales) {
+  const TempDir dir;
+  ResultTable table;
+  table.extra_columns = {"scale_m_per_unit"};
+  const std::vector<std::string> values = {"1.25", "", "nan", "-2", "abc", "0.5x"};
+  for (size_t i = 0; i < values.size(); ++i) {
+    ResultRow row;
+    row.frame = static_cast<frame_t>(i);
+    row.timestamp_s = 10.0 + static_cast<double>(i);
+    row.method = "anchor";
+    row.status = ResultStatus::kOk;
+    row.position = Geodetic{49.0, 8.4 + 1e-5 * static_cast<double>(i), 115.0};
+    row.has_position = true;
+    row.enu_from_cam = Eigen::Quaterniond::Identity();
+    row.extra = {values[i]};
+    table.rows.push_back(row);
+  }
+  WriteResultCsv(table, dir / "anchors.csv");
+  const AnchorSet set = ReadAnchors(dir / "anchors.csv");
+  ASSERT_EQ(set.anchors.size(), values.size());
+  ASSERT_TRUE(set.anchors[0].scale_m_per_unit.has_value());
+  EXPECT_EQ(*set.anchors[0].scale_m_per_unit, 1.25);
+  for (size_t i = 1; i < values.size(); ++i) {
+    EXPECT_FALSE(set.anchors[i].scale_m_per_unit.has_value()) << values[i];
+  }
+  // Without the column: no scales.
+  table.extra_columns.clear();
+  for (ResultRow& row : table.rows) row.extra.clear();
+  WriteResultCsv(table, dir / "plain.csv");
+  for (const Anchor& a : ReadAnchors(dir / "plain.csv").anchors) {
+    EXPECT_FALSE(a.scale_m_per_unit.has_value());
+  }
+}
+
 // The whole path: anchors as geodetic positions with local-ENU orientations, the VO trajectory on
 // the drive's clock, rows per requested frame; frames outside the trajectory are lost.
 TEST(Georef, GeoreferenceWritesRowsPerFrame) {

@@ -23,7 +23,10 @@ struct Anchor {
   double timestamp_s = 0.0;
   Geodetic position;                               // camera centre
   std::optional<Eigen::Quaterniond> enu_from_cam;  // local ENU at `position`
-  int64_t line = 0;                                // of the anchors file
+  // The anchor's own scale of the trajectory it was anchored on (metres per VO unit; column
+  // scale_m_per_unit, which `epiloc anchor --method structure` writes), when the file has one.
+  std::optional<double> scale_m_per_unit;
+  int64_t line = 0;  // of the anchors file
 };
 
 struct AnchorSet {
