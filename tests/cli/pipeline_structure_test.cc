@@ -266,12 +266,12 @@ TEST(PipelineStructure, KittiMapVoAnchorGeorefDatabaseLocalize) {
   RunEpiloc(
       fmt::format("build-map --drive {} --out {} --check-track-scale", cam0, dir / "map.ply"));
   RunEpiloc(fmt::format("vo --drive {} --out {}", cam1, dir / "vo.tum"));
-  // By default the anchors weak along the road or placed elsewhere by their neighbours are
-  // rejected (7 of 16 here, README); --max-along-sigma accepts them so that the chain runs over
-  // the whole drive and its figures show their worth.
+  // The anchors' reliability as it comes (the ok ones only reach georef): the anchors weak
+  // along the road or placed elsewhere by their neighbours are rejected, among them the drive's
+  // two ends (7 of 16, README); georef carries the trajectory past the first and last ok anchor
+  // with their own rotation and scale.
   ChainFigures chain;
-  AnchorGeorefLocalize(dir, cam1, cam0, "--every 10 --heading-error-deg 5 --max-along-sigma 5",
-                       &chain);
+  AnchorGeorefLocalize(dir, cam1, cam0, "--every 10 --heading-error-deg 5", &chain);
   const ErrorStatistics& along = chain.online.along_track;
   std::printf(
       "KITTI structure anchors %d of %zu ok, horizontal max %.3f m; piecewise georef max %.3f m; "
@@ -279,18 +279,20 @@ TEST(PipelineStructure, KittiMapVoAnchorGeorefDatabaseLocalize) {
       "frames\n",
       chain.ok, chain.anchors, chain.anchors_max, chain.piecewise_max, along.mean_abs,
       std::max(-along.min, along.max), static_cast<long long>(chain.online.evaluated()));
-  // Targets (issue 17): anchors <= 0.5 m, piecewise georef <= 0.3 m. On the OXTS drives (map,
-  // truth and GNSS from the OXTS track as imported): 16 of 16 ok, max 0.93 m, piecewise 0.93 m,
-  // camera 0 online along-track mean 0.44 m, max 0.91 m (2026-11-28; 3.85 m and 0.78 / 5.3 m
-  // before the drift pass, the grade seed and the rotation consensus). On the drives lidar-track
-  // corrects (2026-11-28, third session): 16 of 16 ok, max 0.405 m, piecewise 0.422 m (the
-  // drive's two end anchors, half windows), camera 0 online mean 0.077 m, max 0.385 m over 153
-  // frames; asserted with a margin. The piecewise target is not reached.
-  EXPECT_GE(chain.ok * 8, static_cast<int>(chain.anchors) * 7);
-  EXPECT_LE(chain.anchors_max, 0.5);
-  EXPECT_LE(chain.piecewise_max, 0.6);
+  // Targets (issue 17): anchors <= 0.5 m, piecewise georef <= 0.3 m. Measured with every anchor
+  // accepted (--max-along-sigma 5): on the OXTS drives (map, truth and GNSS from the OXTS track
+  // as imported) 16 of 16 ok, max 0.93 m, piecewise 0.93 m, camera 0 online along-track mean
+  // 0.44 m, max 0.91 m (2026-11-28); on the drives lidar-track corrects, max 0.405 m, piecewise
+  // 0.422 m (the two end anchors themselves, 0.38 / 0.40 m off), camera 0 online mean 0.077 m.
+  // With the reliability as it comes (2026-11-28, fourth session): 9 of 16 ok, within 0.196 m;
+  // piecewise max 0.230 m (0.707 m when the ends took the end intervals' chord scale); camera 0
+  // online along-track mean 0.036 m, max 0.129 m over 153 frames. Asserted with margins; the
+  // ok-share target (90 %) is not reached.
+  EXPECT_GE(chain.ok * 2, static_cast<int>(chain.anchors));
+  EXPECT_LE(chain.anchors_max, 0.3);
+  EXPECT_LE(chain.piecewise_max, 0.3);
   EXPECT_GE(chain.online.evaluated() * 10, static_cast<int64_t>(LoadDrive(cam0).frames.size()) * 9);
-  EXPECT_LE(along.mean_abs, 0.15);
+  EXPECT_LE(along.mean_abs, 0.1);
 }
 
 }  // namespace
