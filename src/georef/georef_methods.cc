@@ -156,8 +156,7 @@ GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
     sim.translation = a.centre_in_enu - sim.scale * (sim.rotation * a.vo_from_cam.translation);
     transform.intervals.push_back(sim);
   }
-  // The ends: the end anchor's rotation, and its own scale where the anchors' scales are this
-  // trajectory's (the header).
+  // The anchors' own scales, where they are this trajectory's (the header).
   std::vector<double> ratios;
   for (size_t k = 0; k + 1 < kept.size(); ++k) {
     if (kept[k]->scale_m_per_unit && kept[k + 1]->scale_m_per_unit) {
@@ -166,20 +165,13 @@ GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
     }
   }
   bool own_scales = false;
+  double unit = 1.0;  // the anchors' scales times this are in the trajectory's units
   if (!ratios.empty()) {
     std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
-    const double median = ratios[ratios.size() / 2];
+    unit = ratios[ratios.size() / 2];
     constexpr double kMaxRatio = 1.25;
-    own_scales = median >= 1.0 / kMaxRatio && median <= kMaxRatio;
+    own_scales = unit >= 1.0 / kMaxRatio && unit <= kMaxRatio;
   }
-  const auto end_sim = [&](const AnchorPair& a, const Sim3d& interval,
-                           const Eigen::Quaterniond& r) {
-    Sim3d sim;
-    sim.scale = own_scales && a.scale_m_per_unit ? *a.scale_m_per_unit : interval.scale;
-    sim.rotation = r;
-    sim.translation = a.centre_in_enu - sim.scale * (sim.rotation * a.vo_from_cam.translation);
-    return sim;
-  };
   if (own_scales) {
     for (size_t k = 0; k + 1 < kept.size(); ++k) {
       const AnchorPair& a = *kept[k];
@@ -196,6 +188,17 @@ GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
       transform.ramps.push_back(ramp);
     }
   }
+  // The ends: the end anchor's rotation, and its own scale in the trajectory's units (the
+  // intervals' median ratio of chord to anchor scales; one interval's chord is noisier), else the
+  // end interval's.
+  const auto end_sim = [&](const AnchorPair& a, const Sim3d& interval,
+                           const Eigen::Quaterniond& r) {
+    Sim3d sim;
+    sim.scale = own_scales && a.scale_m_per_unit ? unit * *a.scale_m_per_unit : interval.scale;
+    sim.rotation = r;
+    sim.translation = a.centre_in_enu - sim.scale * (sim.rotation * a.vo_from_cam.translation);
+    return sim;
+  };
   transform.before =
       end_sim(*kept.front(), transform.intervals.front(), transform.rotations.front());
   transform.after = end_sim(*kept.back(), transform.intervals.back(), transform.rotations.back());

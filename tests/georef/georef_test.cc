@@ -349,8 +349,8 @@ TEST(Georef, PiecewiseSkipsCloseAnchorsAndRejectsAStandingVo) {
 
 // Anchors that carry their own scale of the trajectory (structure anchors): inside each interval
 // the scale goes from one anchor's to the next's, and beyond the end anchors the trajectory goes
-// on with the end anchor's rotation and scale; scales of another trajectory (other units) are
-// not taken.
+// on with the end anchor's rotation and scale; scales far from the chords' (another trajectory's)
+// are not taken, and those in other units near the chords' are brought to the trajectory's.
 TEST(Georef, PiecewiseTakesTheAnchorsOwnScalesInsideAndBeyondThem) {
   const int frames = 201;
   const SyntheticRun run = MakeRun(frames, 0.5, 3.0);
@@ -372,6 +372,8 @@ TEST(Georef, PiecewiseTakesTheAnchorsOwnScalesInsideAndBeyondThem) {
   const GeorefTransform without = PiecewiseTransform(plain);
   const GeorefTransform with = PiecewiseTransform(with_scales(1.0));
   const GeorefTransform other = PiecewiseTransform(with_scales(3.0));
+  // Scales in units 10 % off (within the check): brought to the trajectory's, nothing changes.
+  const GeorefTransform units = PiecewiseTransform(with_scales(1.1));
   EXPECT_TRUE(without.ramps.empty());
   EXPECT_EQ(with.ramps.size(), with.intervals.size());
   EXPECT_TRUE(other.ramps.empty());
@@ -389,6 +391,9 @@ TEST(Georef, PiecewiseTakesTheAnchorsOwnScalesInsideAndBeyondThem) {
   const auto [inside_without, beyond_without] = errors(without);
   const auto [inside_with, beyond_with] = errors(with);
   const auto [inside_other, beyond_other] = errors(other);
+  const auto [inside_units, beyond_units] = errors(units);
+  EXPECT_NEAR(inside_units, inside_with, 1e-9);
+  EXPECT_NEAR(beyond_units, beyond_with, 1e-9);
   std::printf(
       "max error inside / beyond the anchors: chord scales %.3f / %.3f m, the anchors' own "
       "%.3f / %.3f m, another trajectory's %.3f / %.3f m\n",

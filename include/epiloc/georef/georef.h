@@ -24,18 +24,19 @@
 //    interval is re-anchored, so the VO's scale drift and rotation drift cannot accumulate past an
 //    anchor. Orientation: slerp of the anchors' rotations R_j R_vo_j^T by time, times R_vo.
 //    Anchors closer than `min_anchor_spacing_m` to the previous kept one are skipped (a chord that
-//    short, e.g. when standing, gives no scale). Before the first and after the last anchor the
-//    trajectory goes on from the end anchor with its own rotation R_j R_vo_j^T and, where the
-//    anchors carry their own scale of this trajectory (structure anchors), with the end anchor's
-//    scale: an interval's chord gives its mean scale and the mean heading of its two anchors'
-//    positions, and a drifting VO's scale at the drive's end is not the last interval's mean
-//    (shared KITTI drive, VO scale 7 % lower at the end than over the last interval: 0.70 m
-//    off after 15 m, against 0.16 m). The anchors' scales are taken as this trajectory's when the
-//    intervals' chord scales agree with them (median ratio within 1/1.25 .. 1.25; another VO's
-//    units would not), else the end interval's scale is kept. With them, the scale also changes
-//    linearly between the two anchors' scales inside each interval (along the VO chord; the
-//    mean scale the chord's, so both anchors stay exact): a scale drifting by dk over an
-//    interval of length L otherwise bends the positions by L dk / 8 in its middle.
+//    short, e.g. when standing, gives no scale). Where the anchors carry their own scale of the
+//    trajectory (structure anchors), the scale changes linearly inside each interval from one
+//    anchor's to the next's (along the VO chord; their ratio only, the interval's mean scale the
+//    chord's, so both anchors stay exact): a scale drifting by dk over an interval of length L
+//    otherwise bends the positions by L dk / 8 in its middle. The anchors' scales are taken as
+//    this trajectory's when the intervals' chord scales agree with them (median ratio within
+//    1/1.25 .. 1.25; another VO's drift would not be this one's). Before the first and after the
+//    last anchor the trajectory goes on from the end anchor with its own rotation R_j R_vo_j^T
+//    and its own scale (in the trajectory's units: times the intervals' median ratio of chord
+//    scale to the anchors' mean scale), else the end interval's: an interval's chord gives its
+//    mean scale and the mean heading of its two anchors' positions, and a drifting VO's scale at
+//    the drive's end is not the last interval's mean (shared KITTI drive, VO scale 7 % lower at
+//    the end than over the last interval: 0.70 m off after 15 m, against 0.16 m).
 // Anchors are associated with the trajectory by time (the VO pose interpolated at the anchor's
 // time, InterpolatePose with max_gap_s); only status ok anchors are used. paper and piecewise need
 // the anchors' orientations (qw..qz).
