@@ -39,18 +39,6 @@ const MethodEvaluation& Method(const Evaluation& evaluation, const std::string& 
 
 double MaxAbs(const ErrorStatistics& stats) { return std::max(-stats.min, stats.max); }
 
-double MaxHorizontal(const ResultTable& rows, const std::string& method, const Drive& drive) {
-  const EnuFrame enu(drive.ground_truth->samples.front().position);
-  double worst = 0.0;
-  for (const ResultRow& r : rows.rows) {
-    if (r.method != method || r.status != ResultStatus::kOk) continue;
-    const auto truth = drive.ground_truth->Interpolate(r.timestamp_s, drive.max_gap_s);
-    if (!truth) continue;
-    worst = std::max(worst, (enu.ToEnu(r.position) - enu.ToEnu(truth->position)).head<2>().norm());
-  }
-  return worst;
-}
-
 TEST(PipelineKitti, MapAnchorsVoGeorefDatabaseLocalize) {
   const fs::path raw = KittiRawDrive();
   EPILOC_SKIP_UNLESS_EXISTS(raw);

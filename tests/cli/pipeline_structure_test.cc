@@ -22,6 +22,7 @@
 #include "epiloc/core/csv.h"
 #include "epiloc/eval/evaluate.h"
 #include "epiloc/io/result.h"
+#include "pipeline_test_util.h"
 #include "test_util.h"
 
 namespace epiloc {
@@ -31,19 +32,6 @@ void RunEpiloc(const std::string& args) {
   const std::string command = fmt::format("{} {} --quiet", EPILOC_BINARY, args);
   const int status = std::system(command.c_str());
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << command;
-}
-
-// Largest horizontal error of the ok rows of `method` against the drive's ground truth.
-double MaxHorizontal(const ResultTable& table, const std::string& method, const Drive& drive) {
-  const EnuFrame enu(drive.ground_truth->samples.front().position);
-  double worst = 0.0;
-  for (const ResultRow& r : table.rows) {
-    if (r.method != method || r.status != ResultStatus::kOk) continue;
-    const auto truth = drive.ground_truth->Interpolate(r.timestamp_s, drive.max_gap_s);
-    if (!truth) continue;
-    worst = std::max(worst, (enu.ToEnu(r.position) - enu.ToEnu(truth->position)).head<2>().norm());
-  }
-  return worst;
 }
 
 // What the chain reached after the map and the VO (dir/map.ply, dir/vo.tum of `query`).

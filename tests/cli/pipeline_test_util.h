@@ -1,22 +1,51 @@
 // Helpers of the survey-chain tests.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
+#include <string>
+
 #include "epiloc/anchor/anchor.h"
+#include "epiloc/geo/geodetic.h"
 #include "epiloc/georef/anchors.h"
+#include "epiloc/io/drive.h"
+#include "epiloc/io/result.h"
 
 namespace epiloc {
 
 // The ok frames of an anchoring run as georeferencing anchors (what `epiloc georef` reads from
-// the anchor CSV).
+// the anchor CSV, the structure anchors' scale included).
 inline AnchorSet OkAnchors(const AnchorDriveResult& anchored) {
   AnchorSet anchors;
   anchors.path = "anchors";
   for (const AnchorResult& a : anchored.frames) {
-    if (a.status == AnchorStatus::kOk) {
-      anchors.anchors.push_back({a.frame, a.timestamp_s, a.position, a.enu_from_cam, 0});
+    if (a.status != AnchorStatus::kOk) continue;
+    Anchor anchor;
+    anchor.frame = a.frame;
+    anchor.timestamp_s = a.timestamp_s;
+    anchor.position = a.position;
+    anchor.enu_from_cam = a.enu_from_cam;
+    if (std::isfinite(a.scale_m_per_unit) && a.scale_m_per_unit > 0.0) {
+      anchor.scale_m_per_unit = a.scale_m_per_unit;
     }
+    anchors.anchors.push_back(anchor);
   }
   return anchors;
+}
+
+// Largest horizontal error of the ok rows of `method` against the drive's ground truth.
+inline double MaxHorizontal(const ResultTable& table,
+                            const std::string& method,
+                            const Drive& drive) {
+  const EnuFrame enu(drive.ground_truth->samples.front().position);
+  double worst = 0.0;
+  for (const ResultRow& r : table.rows) {
+    if (r.method != method || r.status != ResultStatus::kOk) continue;
+    const auto truth = drive.ground_truth->Interpolate(r.timestamp_s, drive.max_gap_s);
+    if (!truth) continue;
+    worst = std::max(worst, (enu.ToEnu(r.position) - enu.ToEnu(truth->position)).head<2>().norm());
+  }
+  return worst;
 }
 
 }  // namespace epiloc
