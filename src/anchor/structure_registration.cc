@@ -522,42 +522,62 @@ StructureRegistration RegisterStructure(const std::vector<Eigen::Vector3d>& poin
   // finest level's loss scale) compared with the fit's: a move is not told apart from the fit
   // unless the points it takes off the surface outnumber those it puts on by twice the
   // deviation of that difference (McNemar's test on the paired outcomes: lost - gained <
-  // 2 sqrt(lost + gained)); the largest such move is taken as 2 sigma. Points that stay on a
+  // 2 sqrt(lost + gained)), or their graded costs rise by twice their deviation (below); the
+  // largest such move is taken as 2 sigma. Points that stay on a
   // facade either way carry no information about the move and no noise into the test (a test
   // of the whole count against its Poisson deviation, 2 sqrt(count), drowned the few points on
   // surfaces facing along the road in them). A move by the finest distance takes a point off
   // its pair's inlier band: finer steps add nothing.
   const double surface_m = options.loss_scale_ratio * finest;
-  const auto on_surface = [&](double move_m) {
+  // Per point, with the fit moved along u: whether it lies on the map's surface (within the loss
+  // scale) and its truncated squared distance to it in units of that scale (1: off it, or
+  // unpaired).
+  struct Surface {
+    std::vector<uint8_t> on;
+    std::vector<double> cost;
+  };
+  const auto surface_at = [&](double move_m) {
     Similarity3 moved = sim;
     moved.translation += move_m * u;
-    std::vector<uint8_t> on(points.size(), 0);
+    Surface out{std::vector<uint8_t>(points.size(), 0), std::vector<double>(points.size(), 1.0)};
     for (const Pair& p : FindPairs(structure, moved, map, finest)) {
-      on[p.index] = PairResidual(p) <= surface_m ? 1 : 0;
+      const double r = PairResidual(p);
+      out.on[p.index] = r <= surface_m ? 1 : 0;
+      out.cost[p.index] = std::min((r / surface_m) * (r / surface_m), 1.0);
     }
-    return on;
+    return out;
   };
   // The search's reach also when the search is off (a registration from a given start, e.g. a
   // neighbour's fit, is no better fixed along the road than one that searched).
   const double reach_m =
       options.search_along_m > 0.0 ? options.search_along_m : options.max_distances_m.front();
-  const std::vector<uint8_t> at_fit = on_surface(0.0);
+  const Surface at_fit = surface_at(0.0);
   result.along_points_on_surface =
-      static_cast<int>(std::count(at_fit.begin(), at_fit.end(), uint8_t{1}));
+      static_cast<int>(std::count(at_fit.on.begin(), at_fit.on.end(), uint8_t{1}));
   double better_move_m = 0.0;
   double better_margin = 0.0;
   for (int k = 1; k * finest <= reach_m + 1e-9; ++k) {
     for (const int sign : {-1, 1}) {
-      const std::vector<uint8_t> at_move = on_surface(sign * k * finest);
+      const Surface at_move = surface_at(sign * k * finest);
+      // Two paired tests of the move against the fit: the points it takes off the surface
+      // against those it puts on (McNemar), and the changes of the points' graded costs summed
+      // against twice their deviation (McNemar's test is its case of costs 0 and 1; the grades
+      // count a point that moves within the band, which a sparse map's few points facing along
+      // the road mostly do). The move is told apart from the fit when either test does.
+      double sum = 0.0, sum2 = 0.0;
       int lost = 0, gained = 0;
-      for (size_t i = 0; i < at_fit.size(); ++i) {
-        lost += at_fit[i] && !at_move[i] ? 1 : 0;
-        gained += !at_fit[i] && at_move[i] ? 1 : 0;
+      for (size_t i = 0; i < points.size(); ++i) {
+        const double d = at_move.cost[i] - at_fit.cost[i];
+        sum += d;
+        sum2 += d * d;
+        lost += at_fit.on[i] && !at_move.on[i] ? 1 : 0;
+        gained += !at_fit.on[i] && at_move.on[i] ? 1 : 0;
       }
       const double deviation = std::sqrt(static_cast<double>(std::max(lost + gained, 1)));
-      const bool tied = lost - gained < 2.0 * deviation;
-      if (tied) result.along_ambiguity_m = k * finest;
-      // A move that puts significantly more points on the surface than it takes off.
+      const bool counts_tied = lost - gained < 2.0 * deviation;
+      const bool costs_tied = sum < 2.0 * std::sqrt(std::max(sum2, 1.0));
+      if (counts_tied && costs_tied) result.along_ambiguity_m = k * finest;
+      // A move that puts significantly more points on the surface than it takes off (McNemar).
       const double margin = (gained - lost) / deviation;
       if (margin > 2.0 && margin > better_margin) {
         better_margin = margin;

@@ -353,8 +353,10 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   EXPECT_LE(Median(e.posed_rotation_deg), 0.1);
   EXPECT_LE(max_h, 0.15);
   EXPECT_LE(max_r, 0.15);
-  // What is called ok is right, and so is a good share of the anchors.
-  EXPECT_GE(e.ok * 5, e.total * 2);
+  // What is called ok is right, and so is a good share of the anchors. Since the along-road
+  // profile also grades the points' costs (StructureRegistration::along_ambiguity_m,
+  // 2026-11-28, fourth session): 37 of 42 ok (29 before), within 0.059 m and 0.095 deg.
+  EXPECT_GE(e.ok * 5, e.total * 4);
   EXPECT_LE(e.max_horizontal_m, 0.1);
   EXPECT_LE(e.max_rotation_deg, 0.15);
 
@@ -362,16 +364,21 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   // 10, 128 beams instead of 64, all around instead of the forward half (`synth --lidar-spacing
   // 2.5 --lidar-rings 128 --lidar-fov 360`). The map limits the along-track fix: here every
   // anchor meets the position target.
-  SynthOptions dense_synth = synth;
-  dense_synth.survey_frames = false;
-  dense_synth.lidar_options.scan_spacing_m = 2.5;
-  dense_synth.lidar_options.num_rings = 128;
-  dense_synth.lidar_options.azimuth_fov_deg = 360.0;
-  const std::string dense = SharedWorld("epiloc_anchor_test_world_15hz_dense_v1", dense_synth);
-  AnchorInputs dense_inputs = QueryInputs(world);
-  dense_inputs.cloud_path = dense + "/lidar/map.ply";
-  const Errors d = Compare(AnchorDriveByStructure(dense_inputs, sift, QueryOptions()), query,
-                           EnuFrame(SynthOrigin()));
+  // The same query and structure against another map of the same world: `scan_spacing_m`
+  // apart, `rings` beams, over `fov_deg`.
+  const auto against_map = [&](const std::string& name, double scan_spacing_m, int rings,
+                               double fov_deg) {
+    SynthOptions map_synth = synth;
+    map_synth.survey_frames = false;
+    map_synth.lidar_options.scan_spacing_m = scan_spacing_m;
+    map_synth.lidar_options.num_rings = rings;
+    map_synth.lidar_options.azimuth_fov_deg = fov_deg;
+    AnchorInputs inputs = QueryInputs(world);
+    inputs.cloud_path = SharedWorld(name, map_synth) + "/lidar/map.ply";
+    return Compare(AnchorDriveByStructure(inputs, sift, QueryOptions()), query,
+                   EnuFrame(SynthOrigin()));
+  };
+  const Errors d = against_map("epiloc_anchor_test_world_15hz_dense_v1", 2.5, 128, 360.0);
   ASSERT_EQ(d.posed, d.total);
   const double dense_max_h = Max(d.posed_horizontal_m);
   const double dense_max_r = Max(d.posed_rotation_deg);
@@ -382,11 +389,12 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   // ok, median 0.029 m, max 0.0505 m: the position target just missed by one anchor (the CLI:
   // 0.030 / 0.045 m); with the tilt held at the coarse levels: 38 ok, median 0.029 m, max
   // 0.044 m, rotation max 0.109 deg; with the rotation consensus: 39 ok, median 0.029 m, max
-  // 0.039 m, rotation median 0.080 deg, max 0.101 deg.
+  // 0.039 m, rotation median 0.080 deg, max 0.101 deg; with the graded profile: 42 of 42 ok.
   EXPECT_LE(dense_max_h, 0.05);
   EXPECT_LE(Median(d.posed_rotation_deg), 0.1);
   EXPECT_LE(dense_max_r, 0.15);
-  EXPECT_GE(d.ok * 5, d.total * 4);
+  EXPECT_GE(d.ok * 10, d.total * 9);
+  EXPECT_LE(d.max_horizontal_m, 0.1);
 
   // The same street on a 2 degree grade (3.5 %), the same frames and structure. Measured
   // (2026-11-28): 21 of 42 ok, within 0.063 m and 0.094 deg; every anchor: median 0.055 m, max
@@ -412,8 +420,23 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   EXPECT_LE(Median(g.posed_rotation_deg), 0.1);
   EXPECT_LE(Max(g.posed_horizontal_m), 0.15);
   EXPECT_LE(Max(g.posed_rotation_deg), 0.15);
-  EXPECT_GE(g.ok * 5, g.total);
+  // With the graded profile: 33 of 42 ok (30 before).
+  EXPECT_GE(g.ok * 5, g.total * 3);
   EXPECT_LE(g.max_horizontal_m, 0.1);
+
+  // A sparser map of the same world: a scan every 20 m instead of 10, 32 beams instead of 64.
+  // Few of its points lie on surfaces facing along the road, and a move of the fit along it
+  // takes few points off the surface; the graded profile counts how far they move within it.
+  // Measured (2026-11-28, fourth session): 18 of 42 ok within 0.053 m (3 with the counts' test
+  // alone, the CLI); every anchor median 0.046 m, max 0.125 m, rotation median 0.122 deg, max
+  // 0.172 deg (the rotation target is missed on this map).
+  const Errors sp = against_map("epiloc_anchor_test_world_15hz_sparse_v1", 20.0, 32,
+                                synth.lidar_options.azimuth_fov_deg);
+  ASSERT_EQ(sp.posed, sp.total);
+  PrintPosed("sparse map", sp);
+  EXPECT_LE(Median(sp.posed_horizontal_m), 0.06);
+  EXPECT_LE(Max(sp.posed_horizontal_m), 0.2);
+  EXPECT_LE(sp.max_horizontal_m, 0.1);
 }
 
 // Six anchors 5 m apart along a VO trajectory scaled 2x into the map: with exact similarities

@@ -134,10 +134,16 @@ struct StructureRegistration {
   // within the search's reach (search_along_m, also when the search is off; when it is 0, the
   // first correspondence distance), re-paired, and which points lie within the finest level's
   // loss scale of the map's surface compared with the fit's: along_ambiguity_m is the largest
-  // move whose points lost from the surface do not outnumber those gained by twice the
-  // deviation of the difference (McNemar: lost - gained < 2 sqrt(lost + gained); the reach:
-  // nothing fixes it), and along_sigma_m is at least half of it (that interval taken as +-2
-  // sigma).
+  // move that two paired tests both leave tied with the fit (the reach: nothing fixes it), and
+  // along_sigma_m is at least half of it (that interval taken as +-2 sigma). The tests: the
+  // points lost from the surface do not outnumber those gained by twice the deviation of the
+  // difference (McNemar: lost - gained < 2 sqrt(lost + gained)); and the points' graded costs
+  // (squared distance to the surface in units of the loss scale, at most 1) do not rise by twice
+  // the deviation of their changes (sum d < 2 sqrt(sum d^2); McNemar's is its case of costs 0
+  // and 1). The graded test tells a move whose points stay within the band but move in it: a
+  // sparse map's few surfaces facing along the road (synthetic street, a scan every 20 m, 32
+  // beams: 18 of 42 anchors fixed, against 3 by the counts alone; the shared KITTI drive: 10
+  // and 11 of 16 against 9 and 10).
   double along_ambiguity_m = 0.0;
   int along_points_on_surface = 0;  // the fit's points on the surface in that profile
   double condition = 0.0;           // largest / smallest eigenvalue of the translation block
