@@ -274,8 +274,9 @@ TEST(PipelineStructure, KittiMapVoAnchorGeorefDatabaseLocalize) {
   // 0.422 m (the two end anchors themselves, 0.38 / 0.40 m off), camera 0 online mean 0.077 m.
   // With the reliability as it comes (2026-11-28, fourth session): 9 of 16 ok, within 0.196 m;
   // piecewise max 0.228 m (0.707 m when the ends took the end intervals' chord scale); camera 0
-  // online along-track mean 0.036 m, max 0.126 m over 153 frames. Asserted with margins; the
-  // ok-share target (90 %) is not reached.
+  // online along-track mean 0.036 m, max 0.126 m over 153 frames. With the graded along-road
+  // test: 10 of 16 ok, the same georef, online mean 0.038 m. Asserted with margins; the ok-share
+  // target (90 %) is not reached.
   EXPECT_GE(chain.ok * 2, static_cast<int>(chain.anchors));
   EXPECT_LE(chain.anchors_max, 0.3);
   EXPECT_LE(chain.piecewise_max, 0.3);
