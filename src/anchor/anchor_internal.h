@@ -24,6 +24,14 @@ namespace anchor_internal {
 // The cloud format of a drive's scan file (`path`: the scan's resolved path, for messages).
 CloudFormat ScanFormat(const LidarScan& scan, const std::string& path);
 
+// A drive's scan (sensor frame) with the points closer than min_range_m or farther than
+// max_range_m from the sensor dropped; intensity when asked for and present, never colour.
+PointCloud ReadScanInRange(const Drive& drive,
+                           const LidarScan& scan,
+                           double min_range_m,
+                           double max_range_m,
+                           bool with_intensity);
+
 // map_from_cam of a camera whose position sample (WGS-84 centre, enu_from_cam in the local ENU
 // at that position) is expressed in the map's ENU frame.
 inline Rigid3d MapFromSample(const EnuFrame& map_frame,

@@ -83,24 +83,18 @@ PointCloud ReadScanInMap(const Drive& drive,
                          const LidarScan& scan,
                          const EnuFrame& map_frame,
                          const BuildMapOptions& options) {
-  const std::string path = drive.ScanPath(scan);
-  CloudReadOptions read;
-  read.format = ScanFormat(scan, path);
-  read.read_colour = false;  // a scan's own colours are not the map's
-  const PointCloud raw = ReadPointCloud(path, read);
+  // A scan's own colours are not the map's.
+  const PointCloud raw =
+      anchor_internal::ReadScanInRange(drive, scan, options.min_range_m, options.max_range_m, true);
   const Rigid3d map_from_sensor = MapFromSample(map_frame, scan.sensor_position,
                                                 scan.enu_from_sensor);
   const Eigen::Matrix3f r = map_from_sensor.rotation.toRotationMatrix().cast<float>();
   const Eigen::Vector3d t = map_from_sensor.translation;
-  const float min2 = static_cast<float>(options.min_range_m * options.min_range_m);
-  const float max2 = static_cast<float>(options.max_range_m * options.max_range_m);
   const std::optional<Deskew> deskew = MakeDeskew(drive, scan, map_frame, map_from_sensor, options);
   PointCloud out;
   out.Reserve(raw.size(), raw.HasIntensity(), false);
   for (size_t i = 0; i < raw.size(); ++i) {
     Eigen::Vector3f p = raw.positions[i];
-    const float range2 = p.squaredNorm();
-    if (range2 < min2 || range2 > max2) continue;
     if (deskew) p = deskew->Apply(p);
     // Rotate in float, translate in double: map coordinates may be far from the origin.
     out.positions.push_back((t + (r * p).cast<double>()).cast<float>());
@@ -403,6 +397,31 @@ CloudFormat ScanFormat(const LidarScan& scan, const std::string& path) {
   } catch (const Error& e) {
     Throw("{}: scan format '{}': {}", path, scan.format, e.what());
   }
+}
+
+PointCloud ReadScanInRange(const Drive& drive,
+                           const LidarScan& scan,
+                           double min_range_m,
+                           double max_range_m,
+                           bool with_intensity) {
+  const std::string path = drive.ScanPath(scan);
+  CloudReadOptions read;
+  read.format = ScanFormat(scan, path);
+  read.read_intensity = with_intensity;
+  read.read_colour = false;
+  const PointCloud raw = ReadPointCloud(path, read);
+  const bool intensity = with_intensity && raw.HasIntensity();
+  const float min2 = static_cast<float>(min_range_m * min_range_m);
+  const float max2 = static_cast<float>(max_range_m * max_range_m);
+  PointCloud kept;
+  kept.Reserve(raw.size(), intensity, false);
+  for (size_t i = 0; i < raw.size(); ++i) {
+    const float range2 = raw.positions[i].squaredNorm();
+    if (range2 < min2 || range2 > max2) continue;
+    kept.positions.push_back(raw.positions[i]);
+    if (intensity) kept.intensity.push_back(raw.intensity[i]);
+  }
+  return kept;
 }
 
 }  // namespace anchor_internal

@@ -25,20 +25,8 @@ constexpr double kRadToDeg = 180.0 / M_PI;
 PointCloud ReadThinnedScan(const Drive& drive,
                            const LidarScan& scan,
                            const LidarTrackOptions& options) {
-  const std::string path = drive.ScanPath(scan);
-  CloudReadOptions read;
-  read.format = anchor_internal::ScanFormat(scan, path);
-  read.read_intensity = false;
-  read.read_colour = false;
-  const PointCloud raw = ReadPointCloud(path, read);
-  const float min2 = static_cast<float>(options.min_range_m * options.min_range_m);
-  const float max2 = static_cast<float>(options.max_range_m * options.max_range_m);
-  PointCloud kept;
-  kept.Reserve(raw.size(), false, false);
-  for (const Eigen::Vector3f& p : raw.positions) {
-    const float range2 = p.squaredNorm();
-    if (range2 >= min2 && range2 <= max2) kept.positions.push_back(p);
-  }
+  const PointCloud kept = anchor_internal::ReadScanInRange(drive, scan, options.min_range_m,
+                                                           options.max_range_m, false);
   return options.voxel_m > 0 ? VoxelFilter(kept, options.voxel_m) : kept;
 }
 

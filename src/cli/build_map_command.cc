@@ -49,12 +49,7 @@ int RunBuildMap(int argc, char** argv) {
   app.add_option("--origin", origin_text,
                  "LAT,LON,ALT of the map's ENU origin (default: --db's, else the drive's first "
                  "position)");
-  app.add_option("--min-range", options.min_range_m,
-                 "Scan points closer to the sensor are dropped, metres")
-      ->capture_default_str();
-  app.add_option("--max-range", options.max_range_m,
-                 "Scan points farther from the sensor are dropped, metres")
-      ->capture_default_str();
+  AddScanRangeOptions(app, options.min_range_m, options.max_range_m);
   std::string spin = "cw";
   app.add_option("--deskew-period", options.deskew_period_s,
                  "Motion-compensate spinning-LiDAR scans with this revolution period, seconds (0 "

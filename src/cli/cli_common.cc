@@ -134,6 +134,14 @@ void CheckConfigFile(const std::string& path, const std::vector<std::string>& na
   if (in.bad()) Throw("{}: read error", path);
 }
 
+void AddScanRangeOptions(CLI::App& app, double& min_range_m, double& max_range_m) {
+  app.add_option("--min-range", min_range_m, "Scan points closer to the sensor are dropped, metres")
+      ->capture_default_str();
+  app.add_option("--max-range", max_range_m,
+                 "Scan points farther from the sensor are dropped, metres")
+      ->capture_default_str();
+}
+
 void AddCommonFlags(CLI::App& app, CommonFlags& flags) {
   app.add_flag("-q,--quiet", flags.quiet, "No progress bar; warnings and errors only");
   app.add_flag("-v,--verbose", flags.verbose, "Debug messages on stderr");

@@ -20,6 +20,9 @@ struct CommonFlags {
 // Adds --quiet, --verbose and --config FILE (options from a TOML/INI file) to a command.
 void AddCommonFlags(CLI::App& app, CommonFlags& flags);
 
+// Adds --min-range and --max-range (a LiDAR scan's points kept by their distance from the sensor).
+void AddScanRangeOptions(CLI::App& app, double& min_range_m, double& max_range_m);
+
 // Parses argv; on success applies the common flags (logging, progress style) and returns nullopt;
 // otherwise prints help (exit 0) or one error line plus a hint (exit 2) and returns the code.
 // An unknown --option is named first (with the closest known one), before CLI11 reports missing

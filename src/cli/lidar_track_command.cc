@@ -30,12 +30,7 @@ int RunLidarTrack(int argc, char** argv) {
       ->required();
   app.add_option("--out", out_dir, "Write the corrected drive to this directory");
   app.add_option("--steps", steps_path, "Write the per-pair figures to this CSV");
-  app.add_option("--min-range", options.min_range_m,
-                 "Scan points closer to the sensor are dropped, metres")
-      ->capture_default_str();
-  app.add_option("--max-range", options.max_range_m,
-                 "Scan points farther from the sensor are dropped, metres")
-      ->capture_default_str();
+  AddScanRangeOptions(app, options.min_range_m, options.max_range_m);
   app.add_option("--voxel", options.voxel_m, "Scans thinned to one point per voxel, metres")
       ->capture_default_str();
   app.add_option("--min-inlier-share", options.min_inlier_share,
