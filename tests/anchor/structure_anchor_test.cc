@@ -441,8 +441,9 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
 
 // Six anchors 5 m apart along a VO trajectory scaled 2x into the map: with exact similarities
 // each is placed where its neighbours put it; one similarity 1 m off along the road is that far
-// from its neighbours' median (the median ignores it in theirs); an anchor of another segment,
-// or with fewer than three neighbours within half the window, is not judged.
+// (its share along the anchors' line) from its neighbours' median (the median ignores it in
+// theirs); an anchor of another segment, or with fewer than three neighbours within half the
+// window, is not judged.
 TEST(StructureAnchor, NeighbourDisagreementFindsTheAnchorItsNeighboursPlaceElsewhere) {
   Similarity3 exact;
   exact.scale = 2.0;
@@ -459,11 +460,14 @@ TEST(StructureAnchor, NeighbourDisagreementFindsTheAnchorItsNeighboursPlaceElsew
   const Eigen::Vector3d along = exact.rotation * Eigen::Vector3d::UnitX();
   anchors[2].map_from_world.translation += along;
   anchors[2].map_centre += along;
+  // The road runs along the anchors' centres, (2.5, 0.1) in the VO world: the move's share
+  // along it.
+  const double moved = std::cos(std::atan2(0.1, 2.5));
   std::vector<std::optional<double>> off = NeighbourDisagreement(anchors, 40.0);
   ASSERT_EQ(off.size(), anchors.size());
   for (size_t i = 0; i < off.size(); ++i) {
     ASSERT_TRUE(off[i].has_value()) << i;
-    EXPECT_NEAR(*off[i], i == 2 ? 1.0 : 0.0, 1e-9) << i;
+    EXPECT_NEAR(*off[i], i == 2 ? moved : 0.0, 1e-9) << i;
   }
   // Another segment is not a neighbour: anchor 5 alone in its segment is not judged.
   anchors[5].segment = 1;
@@ -475,7 +479,48 @@ TEST(StructureAnchor, NeighbourDisagreementFindsTheAnchorItsNeighboursPlaceElsew
   off = NeighbourDisagreement(anchors, 24.0);
   EXPECT_FALSE(off[0].has_value());
   ASSERT_TRUE(off[2].has_value());
-  EXPECT_NEAR(*off[2], 1.0, 1e-9);
+  EXPECT_NEAR(*off[2], moved, 1e-9);
+}
+
+// The disagreement is measured along the road only (the claim of an ok anchor): an anchor moved
+// 1 m across the road and 0.3 m along it is 0.3 m off, whether the road's direction comes from
+// the anchors' map centres or from the VO path (here a path along the world's y axis, turned by
+// the similarity: the anchors' own centres are spread along x, so the path must win).
+TEST(StructureAnchor, NeighbourDisagreementIsMeasuredAlongTheRoad) {
+  Similarity3 exact;
+  exact.scale = 1.5;
+  exact.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(-0.7, Eigen::Vector3d::UnitZ()));
+  exact.translation = Eigen::Vector3d(3, 8, 0);
+  std::vector<PlacedAnchor> anchors;
+  for (int i = 0; i < 6; ++i) {
+    PlacedAnchor a;
+    a.map_from_world = exact;
+    a.vo_centre = Eigen::Vector3d(4.0 * i, 0.0, 0.0);
+    a.map_centre = exact * a.vo_centre;
+    anchors.push_back(a);
+  }
+  const Eigen::Vector3d along = exact.rotation * Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d across = exact.rotation * Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d move = 0.3 * along + 1.0 * across;
+  anchors[3].map_from_world.translation += move;
+  anchors[3].map_centre += move;
+  std::vector<std::optional<double>> off = NeighbourDisagreement(anchors, 40.0);
+  ASSERT_TRUE(off[3].has_value());
+  EXPECT_NEAR(*off[3], 0.3, 1e-9);
+
+  // A VO path through the anchors' centres that heads along the world's y axis at anchor 3 (a
+  // kink there): the road runs along `across` in the map, and the 1 m across is the 1 m along.
+  auto path = std::make_shared<std::vector<Eigen::Vector3d>>();
+  for (int i = 0; i < 6; ++i) path->push_back(anchors[static_cast<size_t>(i)].vo_centre);
+  (*path)[2] = anchors[3].vo_centre - Eigen::Vector3d(0, 1, 0);
+  (*path)[4] = anchors[3].vo_centre + Eigen::Vector3d(0, 1, 0);
+  for (int i = 0; i < 6; ++i) {
+    anchors[static_cast<size_t>(i)].path = path;
+    anchors[static_cast<size_t>(i)].path_index = i;
+  }
+  off = NeighbourDisagreement(anchors, 40.0);
+  ASSERT_TRUE(off[3].has_value());
+  EXPECT_NEAR(*off[3], 1.0, 1e-9);
 }
 
 // Anchors along a VO path whose scale drifts: each anchor's fit is exact at its own camera with

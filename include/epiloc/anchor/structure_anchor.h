@@ -98,9 +98,9 @@ struct StructureAnchorOptions {
   // than most of their neighbours are registered again from the majority's (see
   // ApplyConsensus in the source). This is the radius of agreement, metres (0: off): twice the
   // finest correspondence distance, the fine levels' reach. The pass also takes ok from an anchor
-  // whose neighbours (at least three, itself left out) place it, by the median, farther than its
-  // 2 sigma (2 max_along_sigma_m): neighbouring fits are not independent (their windows overlap),
-  // so agreement proves little, but disagreement disproves the claim.
+  // whose neighbours (at least three, itself left out) place it, by the median, farther along the
+  // road than its 2 sigma (2 max_along_sigma_m): neighbouring fits are not independent (their
+  // windows overlap), so agreement proves little, but disagreement disproves the claim.
   double consensus_radius_m = 0.6;
   // Rotation consensus: a window's fit fixes the structure's rotation poorly where the street is
   // narrow and long (on KITTI its heading varies by 2.8 degrees from anchor to anchor while the
@@ -174,10 +174,11 @@ struct PlacedAnchor {
   // puts a camera 20 m away 0.6 m elsewhere without it.
   Eigen::Vector3d Placing(const PlacedAnchor& other) const;
 };
-// Per anchor, the horizontal distance from its map centre to the median (per axis) of the
+// Per anchor, the distance along the road from its map centre to the median (per axis) of the
 // placements of its VO centre (PlacedAnchor::Placing, with their drift) by the other anchors of
 // its segment whose map centres lie within window_m / 2 of its own; nullopt with fewer than three
-// of them.
+// of them. The road's direction: the VO path's tangent at the anchor turned by its similarity
+// (the principal axis of the neighbours' map centres without a path).
 std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<PlacedAnchor>& anchors,
                                                          double window_m);
 // Per anchor, the rotation consensus of its neighbours (StructureAnchorOptions::
