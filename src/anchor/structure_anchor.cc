@@ -11,6 +11,7 @@
 #include <mutex>
 #include <optional>
 #include <random>
+#include <utility>
 
 #include <spdlog/spdlog.h>
 #include <Eigen/Geometry>
@@ -144,6 +145,19 @@ VoStructure VoStructure::Read(const std::string& trajectory_path, const std::str
   }
   vo.points = ReadVoPoints(points);
   vo.segments.clear();
+  for (const SegmentRange& s : ReadSegmentComments(trajectory_path)) {
+    vo.segments.push_back({s.id, s.first, s.last});
+  }
+  return vo;
+}
+
+VoStructure VoStructure::FromPoses(std::vector<StampedPose> poses,
+                                   const std::string& trajectory_path,
+                                   const std::string& points_path) {
+  VoStructure vo;
+  vo.poses = std::move(poses);
+  if (vo.poses.empty()) Throw("{}: the trajectory has no poses", trajectory_path);
+  if (!points_path.empty()) vo.points = ReadVoPoints(points_path);
   for (const SegmentRange& s : ReadSegmentComments(trajectory_path)) {
     vo.segments.push_back({s.id, s.first, s.last});
   }

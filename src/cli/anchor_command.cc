@@ -15,10 +15,66 @@
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
 #include "epiloc/core/progress.h"
+#include "epiloc/georef/trajectory_import.h"
+#include "epiloc/io/drive.h"
 #include "epiloc/io/result.h"
 
 namespace epiloc {
 namespace {
+
+// The trajectory of --vo (ImportTrajectory: any format georef reads, its times put on the
+// drive's clock) with its points (--vo-points, else the points file beside it when there, else
+// none).
+VoStructure ReadVoForAnchoring(const Drive& drive,
+                               const std::string& vo_path,
+                               TrajectoryImportOptions import,
+                               const std::string& points_path) {
+  for (const FrameRecord& f : drive.frames) {
+    import.frame_times.push_back(f.timestamp_s);
+    import.frame_numbers.push_back(f.frame);
+  }
+  const ImportedTrajectory trajectory = ImportTrajectory(vo_path, import);
+  std::string points = points_path;
+  if (points.empty() && std::filesystem::exists(VoPointsPath(vo_path))) {
+    points = VoPointsPath(vo_path);
+  }
+  return VoStructure::FromPoses(trajectory.poses, vo_path, points);
+}
+
+// The poses of `vo` at the drive's frames: a frame's own pose (within 1 ms), else one
+// interpolated between the poses around it when they are at most max_gap_s apart and of one VO
+// segment (a keyframe trajectory, as ORB-SLAM's KeyFrameTrajectory.txt, then anchors every
+// frame); frames with neither get none. `interpolated` gets the count of the latter kind.
+std::vector<StampedPose> PosesAtFrames(const VoStructure& vo,
+                                       const Drive& drive,
+                                       double max_gap_s,
+                                       int* interpolated) {
+  *interpolated = 0;
+  std::vector<StampedPose> at_frames;
+  size_t j = 0;  // the first pose at or after the frame's time
+  for (const FrameRecord& f : drive.frames) {
+    const double t = f.timestamp_s;
+    while (j < vo.poses.size() && vo.poses[j].timestamp_s < t - 1e-3) ++j;
+    if (j < vo.poses.size() && std::abs(vo.poses[j].timestamp_s - t) <= 1e-3) {
+      at_frames.push_back(vo.poses[j]);
+      continue;
+    }
+    if (j == 0 || j == vo.poses.size()) continue;
+    const StampedPose& before = vo.poses[j - 1];
+    const StampedPose& after = vo.poses[j];
+    const int segment = vo.SegmentOf(before.frame);
+    if (segment < 0 || segment != vo.SegmentOf(after.frame)) continue;
+    const std::optional<Rigid3d> pose = InterpolatePose({before, after}, t, max_gap_s);
+    if (!pose) continue;
+    StampedPose p;
+    p.timestamp_s = t;
+    p.frame = f.frame;
+    p.world_from_cam = *pose;
+    at_frames.push_back(p);
+    ++*interpolated;
+  }
+  return at_frames;
+}
 
 // "N", "A:B" or "A:B:S" items (B exclusive), comma-separated: "0,5,10:20:2".
 std::vector<frame_t> ParseFrameList(const std::string& text) {
@@ -220,9 +276,19 @@ int RunAnchor(int argc, char** argv) {
                  "structure with --vo, else render)")
       ->capture_default_str();
   app.add_option("--vo", inputs.vo_path,
-                 "structure: the drive's VO trajectory (epiloc vo TUM; its points file beside it)");
+                 "structure: the drive's monocular trajectory (epiloc vo TUM with its points file "
+                 "beside it; ORB-SLAM2/3, stella_vslam: TUM or KITTI poses, anchored with the "
+                 "drive's SIFT structure)");
   app.add_option("--vo-points", vo_points_path,
-                 "structure: the VO points CSV (default: beside --vo, .points.csv)");
+                 "structure: the VO points CSV (default: beside --vo, .points.csv, when there)");
+  std::string vo_format = "auto";
+  TrajectoryImportOptions import;
+  AddTrajectoryImportOptions(app, import, vo_format);
+  double max_gap_s = 1.0;
+  app.add_option("--max-gap-s", max_gap_s,
+                 "structure: a frame between two VO poses at most this far apart (seconds, one "
+                 "VO segment) gets the interpolated pose (keyframe trajectories)")
+      ->capture_default_str();
   app.add_option("--structure", structure_source,
                  "structure: the points registered to the map: vo (the VO's own KLT points), sift "
                  "(the drive's SIFT features triangulated along the VO poses) or auto (vo; where "
@@ -287,7 +353,8 @@ int RunAnchor(int argc, char** argv) {
     Throw("--method: unknown anchoring method '{}' (auto, structure, render, photos)", method);
   }
   EPILOC_CHECK(method != "structure" || !inputs.vo_path.empty(),
-               "--method structure needs --vo (epiloc vo output)");
+               "--method structure needs --vo (a monocular trajectory)");
+  EPILOC_CHECK(max_gap_s >= 0, "--max-gap-s must be >= 0");
   EPILOC_CHECK(method != "structure" || inputs.photos_dir.empty(),
                "--method structure does not use --map-photos");
   EPILOC_CHECK(method != "photos" || !inputs.photos_dir.empty(),
@@ -296,6 +363,8 @@ int RunAnchor(int argc, char** argv) {
                                               {"--drive", inputs.drive_dir},
                                               {"--map-photos", inputs.photos_dir},
                                               {"--vo", inputs.vo_path},
+                                              {"--vo-points", vo_points_path},
+                                              {"--vo-times", import.times_path},
                                               {"--db", db_path}});
 
   MapOriginInputs origin_inputs{inputs.cloud_path, std::nullopt, db_path};
@@ -323,7 +392,29 @@ int RunAnchor(int argc, char** argv) {
     structure.heading_error_deg = options.heading_error_deg;
     structure.seed = options.seed;
     structure.num_threads = options.num_threads;
-    const VoStructure vo = VoStructure::Read(inputs.vo_path, vo_points_path);
+    import.format = ParseTrajectoryFileFormat(vo_format);
+    const Drive drive = LoadDrive(inputs.drive_dir);
+    const VoStructure read = ReadVoForAnchoring(drive, inputs.vo_path, import, vo_points_path);
+    VoStructure vo = read;
+    int interpolated = 0;
+    vo.poses = PosesAtFrames(read, drive, max_gap_s, &interpolated);
+    EPILOC_CHECK(!vo.poses.empty(),
+                 "{}: no pose at any frame time of drive {} (its clock: --relative-times or "
+                 "--time-offset-s)",
+                 inputs.vo_path, inputs.drive_dir);
+    if (interpolated > 0) {
+      spdlog::info("structure: {} frames between the {} poses of {} take interpolated poses",
+                   interpolated, read.poses.size(), inputs.vo_path);
+    }
+    if (vo.points.empty() && structure_source != "sift") {
+      EPILOC_CHECK(structure_source == "auto",
+                   "--structure vo: {} has no points file ({} not there; --vo-points FILE), or "
+                   "use --structure sift (the drive's SIFT features along its poses)",
+                   inputs.vo_path, VoPointsPath(inputs.vo_path));
+      spdlog::info("structure: {} comes without points: the drive's SIFT structure is used",
+                   inputs.vo_path);
+      structure_source = "sift";
+    }
     // The drive's SIFT features triangulated along the VO poses (structure_sift.h).
     const auto sift_structure = [&] {
       BuildDbOptions build;

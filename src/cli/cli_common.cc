@@ -142,6 +142,18 @@ void AddScanRangeOptions(CLI::App& app, double& min_range_m, double& max_range_m
       ->capture_default_str();
 }
 
+void AddTrajectoryImportOptions(CLI::App& app,
+                                TrajectoryImportOptions& import,
+                                std::string& format) {
+  app.add_option("--vo-format", format, "auto | tum | kitti")->capture_default_str();
+  app.add_option("--vo-times", import.times_path, "KITTI poses: times file (one per line)");
+  app.add_option("--time-offset-s", import.time_offset_s,
+                 "Added to the trajectory's times (e.g. the UNIX time of its frame 0)")
+      ->capture_default_str();
+  app.add_flag("--relative-times", import.relative_times,
+               "The trajectory's times count from the drive's first frame (ORB-SLAM times.txt)");
+}
+
 void AddCommonFlags(CLI::App& app, CommonFlags& flags) {
   app.add_flag("-q,--quiet", flags.quiet, "No progress bar; warnings and errors only");
   app.add_flag("-v,--verbose", flags.verbose, "Debug messages on stderr");

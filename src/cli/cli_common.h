@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include "epiloc/core/output_file.h"
+#include "epiloc/georef/trajectory_import.h"
 #include "epiloc/survey/triangulate.h"
 
 namespace epiloc {
@@ -22,6 +23,13 @@ void AddCommonFlags(CLI::App& app, CommonFlags& flags);
 
 // Adds --min-range and --max-range (a LiDAR scan's points kept by their distance from the sensor).
 void AddScanRangeOptions(CLI::App& app, double& min_range_m, double& max_range_m);
+
+// Adds --vo-format (into `format`), --vo-times, --time-offset-s and --relative-times: how a
+// monocular trajectory given with --vo is read and put on the drive's clock
+// (georef/trajectory_import.h).
+void AddTrajectoryImportOptions(CLI::App& app,
+                                TrajectoryImportOptions& import,
+                                std::string& format);
 
 // Parses argv; on success applies the common flags (logging, progress style) and returns nullopt;
 // otherwise prints help (exit 0) or one error line plus a hint (exit 2) and returns the code.

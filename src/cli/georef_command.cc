@@ -39,13 +39,7 @@ int RunGeoref(int argc, char** argv) {
   app.add_option("--drive", drive_dir,
                  "Drive directory: one output row per frame (else one per VO pose); frame times "
                  "for KITTI poses without --vo-times and for --relative-times");
-  app.add_option("--vo-format", vo_format, "auto | tum | kitti")->capture_default_str();
-  app.add_option("--vo-times", import.times_path, "KITTI poses: times file (one per line)");
-  app.add_option("--time-offset-s", import.time_offset_s,
-                 "Added to the trajectory's times (e.g. the UNIX time of its frame 0)")
-      ->capture_default_str();
-  app.add_flag("--relative-times", import.relative_times,
-               "The trajectory's times count from the drive's first frame (ORB-SLAM times.txt)");
+  AddTrajectoryImportOptions(app, import, vo_format);
   app.add_option("--max-gap-s", options.max_gap_s,
                  "Longest gap between trajectory poses that is interpolated")
       ->capture_default_str();

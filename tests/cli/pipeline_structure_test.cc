@@ -19,8 +19,10 @@
 #include <gtest/gtest.h>
 
 #include "anchor/anchor_test_util.h"
+#include "cli_run_util.h"
 #include "epiloc/core/csv.h"
 #include "epiloc/eval/evaluate.h"
+#include "epiloc/io/pose_files.h"
 #include "epiloc/io/result.h"
 #include "pipeline_test_util.h"
 #include "test_util.h"
@@ -172,6 +174,88 @@ TEST(PipelineStructure, AutoStructureKeepsTheBetterFixedOne) {
               median[0], median[1], median[2]);
   EXPECT_EQ(median[0], median[2]);
   EXPECT_LT(median[2], median[1]);
+}
+
+// `anchor --vo` reads the trajectories users have from other SLAM systems, without points: an
+// ORB-SLAM-style keyframe trajectory (TUM, every other pose, times from the drive's start, no
+// comments, no points file) and KITTI poses (a line per frame). Without points the drive's SIFT
+// structure is used; the KITTI poses of every frame give exactly the anchors of `--structure
+// sift` on the VO's own file; the frames between keyframes take interpolated poses and are
+// anchored too. `--structure vo` without points is a one-line error naming the missing file.
+TEST(PipelineStructure, AnchorReadsOtherSlamTrajectoriesWithoutPoints) {
+  const std::string world = SharedSyntheticWorld();
+  TempDir dir;
+  const std::string query = world + "/query";
+  RunEpiloc(fmt::format("build-map --drive {} --out {} --origin {:.9f},{:.9f},{:.3f}",
+                        world + "/survey", dir / "map.ply", SynthOrigin().lat_deg,
+                        SynthOrigin().lon_deg, SynthOrigin().alt_m));
+  RunEpiloc(fmt::format("vo --drive {} --out {}", query, dir / "vo.tum"));
+  const Drive drive = LoadDrive(query);
+  const std::vector<StampedPose> poses = ReadTumPoses(dir / "vo.tum");
+  ASSERT_EQ(poses.size(), drive.frames.size());
+
+  // Keyframes: every other pose, times counted from the drive's first frame.
+  std::vector<StampedPose> keyframes;
+  for (size_t i = 0; i < poses.size(); i += 2) {
+    StampedPose p = poses[i];
+    p.timestamp_s -= drive.frames.front().timestamp_s;
+    keyframes.push_back(p);
+  }
+  WriteTumPoses(keyframes, dir / "KeyFrameTrajectory.txt");
+  {
+    std::ofstream kitti(dir / "poses.txt");
+    kitti.precision(17);
+    for (const StampedPose& p : poses) {
+      const Eigen::Matrix3d r = p.world_from_cam.rotation.toRotationMatrix();
+      const Eigen::Vector3d& t = p.world_from_cam.translation;
+      for (int row = 0; row < 3; ++row) {
+        kitti << (row ? " " : "") << r(row, 0) << ' ' << r(row, 1) << ' ' << r(row, 2) << ' '
+              << t(row);
+      }
+      kitti << '\n';
+    }
+  }
+  const std::string common = fmt::format(
+      "anchor --cloud {} --drive {} --every 4 --heading-error-deg 5 --camera-height 1.5",
+      dir / "map.ply", query);
+  RunEpiloc(fmt::format("{} --vo {} --structure sift --out {}", common, dir / "vo.tum",
+                        dir / "sift.csv"));
+  RunEpiloc(fmt::format("{} --vo {} --vo-format kitti --out {}", common, dir / "poses.txt",
+                        dir / "kitti.csv"));
+  RunEpiloc(fmt::format("{} --vo {} --relative-times --out {}", common,
+                        dir / "KeyFrameTrajectory.txt", dir / "keyframes.csv"));
+  const ResultTable sift = ReadResultCsv(dir / "sift.csv");
+  const ResultTable kitti = ReadResultCsv(dir / "kitti.csv");
+  const ResultTable keyframes_anchored = ReadResultCsv(dir / "keyframes.csv");
+  ASSERT_EQ(kitti.rows.size(), sift.rows.size());
+  ASSERT_EQ(keyframes_anchored.rows.size(), sift.rows.size());
+  int posed = 0;
+  for (size_t i = 0; i < sift.rows.size(); ++i) {
+    EXPECT_EQ(kitti.rows[i].status, sift.rows[i].status) << i;
+    EXPECT_EQ(kitti.rows[i].has_position, sift.rows[i].has_position) << i;
+    if (kitti.rows[i].has_position && sift.rows[i].has_position) {
+      const EnuFrame enu(sift.rows[i].position);
+      EXPECT_LT(enu.ToEnu(kitti.rows[i].position).norm(), 1e-3) << i;
+    }
+    posed += keyframes_anchored.rows[i].has_position ? 1 : 0;
+  }
+  const double median_sift = MedianPosedHorizontal(sift, "anchor", drive);
+  const double median_keyframes = MedianPosedHorizontal(keyframes_anchored, "anchor", drive);
+  std::printf(
+      "anchors, median horizontal error: SIFT structure on the VO's file %.3f m; keyframes "
+      "(every other pose) %.3f m, %d of %zu posed\n",
+      median_sift, median_keyframes, posed, keyframes_anchored.rows.size());
+  // Every anchor frame lies between two keyframes (or on one) but the last, beyond the last one.
+  EXPECT_GE(posed + 1, static_cast<int>(keyframes_anchored.rows.size()));
+  EXPECT_LE(median_keyframes, 2.0 * median_sift + 0.05);
+
+  const CliRun vo_points =
+      RunCli(fmt::format("{} --vo {} --relative-times --structure vo --out {} -q", common,
+                         dir / "KeyFrameTrajectory.txt", dir / "none.csv"));
+  EXPECT_NE(vo_points.exit_code, 0);
+  EXPECT_EQ(NumLines(vo_points.err), 1) << vo_points.err;
+  EXPECT_NE(vo_points.err.find("KeyFrameTrajectory.points.csv"), std::string::npos)
+      << vo_points.err;
 }
 
 // The same chain with the query's SIFT features triangulated along its VO poses as the structure

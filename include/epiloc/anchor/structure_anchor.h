@@ -146,6 +146,13 @@ struct VoStructure {
   // Reads a TUM trajectory (`epiloc vo`) and its points file (VoPointsPath when
   // `points_path` is empty). Throws Error naming the file.
   static VoStructure Read(const std::string& trajectory_path, const std::string& points_path = "");
+  // Poses read elsewhere (ORB-SLAM2/3, stella_vslam or KITTI poses: georef/trajectory_import.h)
+  // with the points of `points_path` (none when empty: such a trajectory is anchored with the
+  // drive's own SIFT structure, structure_sift.h) and the "# segment" comments of
+  // `trajectory_path` (none: one segment). Throws Error naming the file.
+  static VoStructure FromPoses(std::vector<StampedPose> poses,
+                               const std::string& trajectory_path,
+                               const std::string& points_path);
   // The same from an odometry run in memory (VoOptions::keep_points).
   static VoStructure FromResult(const VoResult& result);
   // A copy whose poses carry the frame numbers of `drive`: the frame at each pose's time (within
