@@ -147,10 +147,12 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   const VoStructure whole_vo = VoStructure::FromResult(RunVisualOdometry(lidar_drive, VoOptions()));
   const Figures lidar =
       run_on(lidar_inputs, lidar_drive, whole_vo, options, "LiDAR-consistent track");
-  // Reached (2026-11-28): 2 of 16 ok (the others rejected by the neighbours' check or as weak
-  // along the road), horizontal median 0.125 m, max 0.388 m (frame 0, at the drive's start);
-  // rotation median 0.19 deg, max 0.43 deg; 0.6 s per anchor. The targets, but for the ok share.
+  // Reached (2026-11-28, fifth session): 12 of 16 ok (the drive's two ends and two weak along
+  // the road rejected), horizontal median 0.123 m, max 0.405 m (frame 0, at the drive's start);
+  // rotation median 0.19 deg, max 0.43 deg; 0.6-1.6 s per anchor (2 threads, the machine
+  // otherwise busy or not). The targets, but for the ok share (90 %).
   ASSERT_GE(lidar.horizontal.size() * 4, lidar.anchors * 3);
+  EXPECT_GE(lidar.ok * 8, static_cast<int>(lidar.anchors) * 5);
   EXPECT_LE(Median(lidar.horizontal), 0.2);
   EXPECT_LE(*std::max_element(lidar.horizontal.begin(), lidar.horizontal.end()), 0.5);
   EXPECT_LE(Median(lidar.rotation), 0.5);

@@ -359,9 +359,10 @@ TEST(PipelineStructure, KittiMapVoAnchorGeorefDatabaseLocalize) {
   // With the reliability as it comes (2026-11-28, fourth session): 9 of 16 ok, within 0.196 m;
   // piecewise max 0.228 m (0.707 m when the ends took the end intervals' chord scale); camera 0
   // online along-track mean 0.036 m, max 0.126 m over 153 frames. With the graded along-road
-  // test: 10 of 16 ok, the same georef, online mean 0.038 m. Asserted with margins; the ok-share
-  // target (90 %) is not reached.
-  EXPECT_GE(chain.ok * 2, static_cast<int>(chain.anchors));
+  // test: 10 of 16 ok, the same georef, online mean 0.038 m. With the neighbours' check along
+  // the road (fifth session): 12 of 16 ok within 0.196 m, georef 0.228 m, online mean 0.040 m,
+  // max 0.125 m. Asserted with margins; the ok-share target (90 %) is not reached.
+  EXPECT_GE(chain.ok * 8, static_cast<int>(chain.anchors) * 5);
   EXPECT_LE(chain.anchors_max, 0.3);
   EXPECT_LE(chain.piecewise_max, 0.3);
   EXPECT_GE(chain.online.evaluated() * 10, static_cast<int64_t>(LoadDrive(cam0).frames.size()) * 9);

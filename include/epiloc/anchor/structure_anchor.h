@@ -31,7 +31,7 @@
 // Accuracy (README): on the shared KITTI drive against its OXTS camera pose about 0.57 m and
 // 0.74-0.95 degrees (median), limited by that track, which is 3.7 % short of its own LiDAR and
 // 0.43 deg flatter; against a map and truth on the LiDAR's path (`epiloc lidar-track`) 0.125 /
-// 0.399 m (median / max) and 0.18 / 0.45 deg, 9 of 16 ok; the ICP's cost on a sparse map and a
+// 0.399 m (median / max) and 0.18 / 0.45 deg, 12 of 16 ok; the ICP's cost on a sparse map and a
 // monocular structure has minima up to a metre apart (even exact structure is not placed better
 // there: tools/bench_structure_bound.cc). On the synthetic street the VO's KLT points are
 // too noisy to be fixed along the road (their count on the map's surfaces is flat within
