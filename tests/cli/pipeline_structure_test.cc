@@ -81,6 +81,15 @@ void AnchorGeorefLocalize(const TempDir& dir,
   out->online = *online;
 }
 
+// The synthetic street's map from its survey drive's LiDAR (dir/map.ply) and its query drive's
+// VO (dir/vo.tum, with its points beside it).
+void MapAndVo(const TempDir& dir, const std::string& world) {
+  RunEpiloc(fmt::format("build-map --drive {} --out {} --origin {:.9f},{:.9f},{:.3f}",
+                        world + "/survey", dir / "map.ply", SynthOrigin().lat_deg,
+                        SynthOrigin().lon_deg, SynthOrigin().alt_m));
+  RunEpiloc(fmt::format("vo --drive {} --out {}", world + "/query", dir / "vo.tum"));
+}
+
 // The chain on the synthetic street: its map from the survey's LiDAR, the query's VO, anchors
 // every 4th frame with `anchor_options` (besides the prior's), then as AnchorGeorefLocalize; the
 // figures printed under `label`. `survey_frames` gets the survey drive's frame count.
@@ -91,10 +100,7 @@ ChainFigures SyntheticChain(const std::string& label,
   TempDir dir;
   const std::string query = world + "/query", survey = world + "/survey";
   *survey_frames = LoadDrive(survey).frames.size();
-  RunEpiloc(fmt::format("build-map --drive {} --out {} --origin {:.9f},{:.9f},{:.3f}", survey,
-                        dir / "map.ply", SynthOrigin().lat_deg, SynthOrigin().lon_deg,
-                        SynthOrigin().alt_m));
-  RunEpiloc(fmt::format("vo --drive {} --out {}", query, dir / "vo.tum"));
+  MapAndVo(dir, world);
   ChainFigures chain;
   AnchorGeorefLocalize(dir, query, survey,
                        "--every 4 --heading-error-deg 5 --camera-height 1.5 " + anchor_options,
@@ -156,10 +162,7 @@ TEST(PipelineStructure, AutoStructureKeepsTheBetterFixedOne) {
   const std::string world = SharedSyntheticWorld();
   TempDir dir;
   const std::string query = world + "/query";
-  RunEpiloc(fmt::format("build-map --drive {} --out {} --origin {:.9f},{:.9f},{:.3f}",
-                        world + "/survey", dir / "map.ply", SynthOrigin().lat_deg,
-                        SynthOrigin().lon_deg, SynthOrigin().alt_m));
-  RunEpiloc(fmt::format("vo --drive {} --out {}", query, dir / "vo.tum"));
+  MapAndVo(dir, world);
   const Drive drive = LoadDrive(query);
   double median[3];
   const char* structures[3] = {"", "--structure vo", "--structure sift"};
@@ -186,10 +189,7 @@ TEST(PipelineStructure, AnchorReadsOtherSlamTrajectoriesWithoutPoints) {
   const std::string world = SharedSyntheticWorld();
   TempDir dir;
   const std::string query = world + "/query";
-  RunEpiloc(fmt::format("build-map --drive {} --out {} --origin {:.9f},{:.9f},{:.3f}",
-                        world + "/survey", dir / "map.ply", SynthOrigin().lat_deg,
-                        SynthOrigin().lon_deg, SynthOrigin().alt_m));
-  RunEpiloc(fmt::format("vo --drive {} --out {}", query, dir / "vo.tum"));
+  MapAndVo(dir, world);
   const Drive drive = LoadDrive(query);
   const std::vector<StampedPose> poses = ReadTumPoses(dir / "vo.tum");
   ASSERT_EQ(poses.size(), drive.frames.size());
