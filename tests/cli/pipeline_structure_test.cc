@@ -184,7 +184,8 @@ TEST(PipelineStructure, AutoStructureKeepsTheBetterFixedOne) {
 // comments, no points file) and KITTI poses (a line per frame). Without points the drive's SIFT
 // structure is used; the KITTI poses of every frame give exactly the anchors of `--structure
 // sift` on the VO's own file; the frames between keyframes take interpolated poses and are
-// anchored too. `--structure vo` without points is a one-line error naming the missing file.
+// anchored too. `--structure vo` without points is a one-line error naming the missing file, and
+// so is a trajectory off the drive's clock.
 TEST(PipelineStructure, AnchorReadsOtherSlamTrajectoriesWithoutPoints) {
   const std::string world = SharedSyntheticWorld();
   TempDir dir;
@@ -256,6 +257,12 @@ TEST(PipelineStructure, AnchorReadsOtherSlamTrajectoriesWithoutPoints) {
   EXPECT_EQ(NumLines(vo_points.err), 1) << vo_points.err;
   EXPECT_NE(vo_points.err.find("KeyFrameTrajectory.points.csv"), std::string::npos)
       << vo_points.err;
+  // Times from the sequence's start without --relative-times: no pose on the drive's clock.
+  const CliRun clock = RunCli(fmt::format("{} --vo {} --out {} -q", common,
+                                          dir / "KeyFrameTrajectory.txt", dir / "none.csv"));
+  EXPECT_NE(clock.exit_code, 0);
+  EXPECT_EQ(NumLines(clock.err), 1) << clock.err;
+  EXPECT_NE(clock.err.find("--relative-times"), std::string::npos) << clock.err;
 }
 
 // The same chain with the query's SIFT features triangulated along its VO poses as the structure
