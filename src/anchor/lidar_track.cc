@@ -15,6 +15,7 @@
 #include "epiloc/cloud/voxel.h"
 #include "epiloc/core/error.h"
 #include "epiloc/core/parallel.h"
+#include "epiloc/core/statistics.h"
 
 namespace epiloc {
 namespace {
@@ -28,14 +29,6 @@ PointCloud ReadThinnedScan(const Drive& drive,
   const PointCloud kept = anchor_internal::ReadScanInRange(drive, scan, options.min_range_m,
                                                            options.max_range_m, false);
   return options.voxel_m > 0 ? VoxelFilter(kept, options.voxel_m) : kept;
-}
-
-double Median(std::vector<double> values) {
-  if (values.empty()) return 0.0;
-  const auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), mid, values.end());
-  if (values.size() % 2 == 1) return *mid;
-  return 0.5 * (*mid + *std::max_element(values.begin(), mid));
 }
 
 // Elevation and azimuth of a direction, radians.

@@ -9,6 +9,7 @@
 #include <opencv2/core/eigen.hpp>
 
 #include "epiloc/core/error.h"
+#include "epiloc/core/statistics.h"
 
 namespace epiloc {
 namespace {
@@ -68,13 +69,6 @@ bool PolishOnInliers(const std::vector<cv::Point2d>& p1,
     }
   }
   return true;
-}
-
-double Median(std::vector<double> values) {
-  if (values.empty()) return 0.0;
-  const size_t mid = values.size() / 2;
-  std::nth_element(values.begin(), values.begin() + mid, values.end());
-  return values[mid];
 }
 
 }  // namespace
@@ -259,7 +253,7 @@ EpipoleResult EstimateEpipole(const std::vector<Eigen::Vector2d>& query_pixels,
     const Eigen::Vector3d b = Eigen::Vector3d(db_norm[i].x, db_norm[i].y, 1.0).normalized();
     parallax.push_back(std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180.0 / M_PI);
   }
-  result.median_parallax_deg = Median(parallax);
+  result.median_parallax_deg = UpperMedian(parallax);
   if (result.median_parallax_deg < options.min_parallax_deg) {
     result.failure = "no parallax (near-pure rotation)";
     return result;

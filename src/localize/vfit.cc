@@ -6,6 +6,7 @@
 #include <random>
 
 #include "epiloc/core/error.h"
+#include "epiloc/core/statistics.h"
 
 namespace epiloc {
 namespace {
@@ -165,16 +166,6 @@ std::vector<int> SortedIndices(const std::vector<Point>& points, const std::vect
 
 bool TwoDistinct(const std::vector<Point>& points, const std::vector<int>& idx) {
   return !idx.empty() && points[idx.back()].s > points[idx.front()].s;
-}
-
-double Median(std::vector<double> values) {
-  const size_t mid = values.size() / 2;
-  std::nth_element(values.begin(), values.begin() + mid, values.end());
-  double median = values[mid];
-  if (values.size() % 2 == 0) {
-    median = 0.5 * (median + *std::max_element(values.begin(), values.begin() + mid));
-  }
-  return median;
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "epiloc/core/error.h"
+#include "epiloc/core/statistics.h"
 #include "vo_map.h"
 
 namespace epiloc {
@@ -31,12 +32,6 @@ struct FrameState {
 
 Eigen::Vector3d Centre(const Rigid3d& cam_from_world) {
   return -(cam_from_world.rotation.conjugate() * cam_from_world.translation);
-}
-
-double Median(std::vector<double> values) {
-  if (values.empty()) return 0.0;
-  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
-  return values[values.size() / 2];
 }
 
 }  // namespace
@@ -234,7 +229,7 @@ void VisualOdometry::Impl::TryInitialize(FrameState& state) {
     return;
   }
   pending_.emplace_back(frames_.size(), CurrentObservations());
-  if (Median(flow) < options_.init_min_flow_px) return;
+  if (UpperMedian(flow) < options_.init_min_flow_px) return;
   TwoViewOptions two_view = options_.two_view;
   two_view.seed = options_.two_view.seed + static_cast<uint64_t>(frames_.size());
   const TwoViewResult result = EstimateTwoView(x1, x2, two_view);
