@@ -407,10 +407,13 @@ int RunAnchor(int argc, char** argv) {
                    interpolated, read.poses.size(), inputs.vo_path);
     }
     if (vo.points.empty() && structure_source != "sift") {
+      const std::string points =
+          vo_points_path.empty() ? VoPointsPath(inputs.vo_path) : vo_points_path;
       EPILOC_CHECK(structure_source == "auto",
-                   "--structure vo: {} has no points file ({} not there; --vo-points FILE), or "
-                   "use --structure sift (the drive's SIFT features along its poses)",
-                   inputs.vo_path, VoPointsPath(inputs.vo_path));
+                   "--structure vo: no VO points for {} ({} {}; --vo-points FILE), or use "
+                   "--structure sift (the drive's SIFT features along its poses)",
+                   inputs.vo_path, points,
+                   std::filesystem::exists(points) ? "holds none" : "not there");
       spdlog::info("structure: {} comes without points: the drive's SIFT structure is used",
                    inputs.vo_path);
       structure_source = "sift";
