@@ -1,6 +1,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -393,6 +394,9 @@ int RunAnchor(int argc, char** argv) {
     structure.seed = options.seed;
     structure.num_threads = options.num_threads;
     import.format = ParseTrajectoryFileFormat(vo_format);
+    // The trajectory first: its errors name the file the user gave for this method.
+    EPILOC_CHECK(std::ifstream(inputs.vo_path).good(), "{}: cannot open the trajectory",
+                 inputs.vo_path);
     const Drive drive = LoadDrive(inputs.drive_dir);
     const VoStructure read = ReadVoForAnchoring(drive, inputs.vo_path, import, vo_points_path);
     VoStructure vo = read;
