@@ -368,7 +368,9 @@ TEST(PipelineStructure, KittiMapVoAnchorGeorefDatabaseLocalize) {
   // online along-track mean 0.036 m, max 0.126 m over 153 frames. With the graded along-road
   // test: 10 of 16 ok, the same georef, online mean 0.038 m. With the neighbours' check along
   // the road (fifth session): 12 of 16 ok within 0.196 m, georef 0.228 m, online mean 0.040 m,
-  // max 0.125 m. Asserted with margins; the ok-share target (90 %) is not reached.
+  // max 0.125 m. With the drift from the neighbours' scales only: 13 of 16 ok within 0.238 m,
+  // georef 0.241 m, online mean 0.042 m, max 0.151 m. Asserted with margins; the ok-share
+  // target (90 %) is not reached.
   EXPECT_GE(chain.ok * 8, static_cast<int>(chain.anchors) * 5);
   EXPECT_LE(chain.anchors_max, 0.3);
   EXPECT_LE(chain.piecewise_max, 0.3);

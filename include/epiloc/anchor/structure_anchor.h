@@ -24,7 +24,7 @@
 //     max_prior_sigmas * gnss_sigma_m of the GNSS, at camera height over the map's ground and
 //     nearly level; else `rejected` with the reason.
 //  5. Drift pass (ScaleDriftModel::kAcrossAnchors, default): the VO's scale drift at f from the
-//     scales of the anchors around it, then f registered again from its own fit with the
+//     scales of the other anchors around it, then f registered again from its own fit with the
 //     structure warped by that drift (StructureDrift); then the consensus pass, the rotation
 //     consensus (rotation_consensus) and the neighbours' check of the ok anchors.
 // Frames: map = the cloud's local ENU (metres); VO world = the trajectory's frame (its units).
@@ -62,9 +62,9 @@ namespace epiloc {
 // middle of its first and last keyframe; the frame's pose is the warp's fixed point).
 enum class ScaleDriftModel {
   kNone,           // one similarity per window
-  kAcrossAnchors,  // the drift from the scales of the anchors around (within half the window),
-                   // then each anchor registered again with it from its own fit (no search, the
-                   // levels that free the scale)
+  kAcrossAnchors,  // the drift from the scales of the other anchors around (within half the
+                   // window), then each anchor registered again with it from its own fit (no
+                   // search, the levels that free the scale)
   kPerWindow,      // estimated in each window's registration with the similarity
 };
 
