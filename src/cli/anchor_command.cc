@@ -30,10 +30,7 @@ VoStructure ReadVoForAnchoring(const Drive& drive,
                                const std::string& vo_path,
                                TrajectoryImportOptions import,
                                const std::string& points_path) {
-  for (const FrameRecord& f : drive.frames) {
-    import.frame_times.push_back(f.timestamp_s);
-    import.frame_numbers.push_back(f.frame);
-  }
+  SetDriveFrames(drive, &import);
   const ImportedTrajectory trajectory = ImportTrajectory(vo_path, import);
   std::string points = points_path;
   if (points.empty() && std::filesystem::exists(VoPointsPath(vo_path))) {
@@ -398,17 +395,17 @@ int RunAnchor(int argc, char** argv) {
     EPILOC_CHECK(std::ifstream(inputs.vo_path).good(), "{}: cannot open the trajectory",
                  inputs.vo_path);
     const Drive drive = LoadDrive(inputs.drive_dir);
-    const VoStructure read = ReadVoForAnchoring(drive, inputs.vo_path, import, vo_points_path);
-    VoStructure vo = read;
+    VoStructure vo = ReadVoForAnchoring(drive, inputs.vo_path, import, vo_points_path);
+    const size_t read_poses = vo.poses.size();
     int interpolated = 0;
-    vo.poses = PosesAtFrames(read, drive, max_gap_s, &interpolated);
+    vo.poses = PosesAtFrames(vo, drive, max_gap_s, &interpolated);
     EPILOC_CHECK(!vo.poses.empty(),
                  "{}: no pose at any frame time of drive {} (its clock: --relative-times or "
                  "--time-offset-s)",
                  inputs.vo_path, inputs.drive_dir);
     if (interpolated > 0) {
       spdlog::info("structure: {} frames between the {} poses of {} take interpolated poses",
-                   interpolated, read.poses.size(), inputs.vo_path);
+                   interpolated, read_poses, inputs.vo_path);
     }
     if (vo.points.empty() && structure_source != "sift") {
       const std::string points =

@@ -154,6 +154,13 @@ void AddTrajectoryImportOptions(CLI::App& app,
                "The trajectory's times count from the drive's first frame (ORB-SLAM times.txt)");
 }
 
+void SetDriveFrames(const Drive& drive, TrajectoryImportOptions* import) {
+  for (const FrameRecord& f : drive.frames) {
+    import->frame_times.push_back(f.timestamp_s);
+    import->frame_numbers.push_back(f.frame);
+  }
+}
+
 void AddCommonFlags(CLI::App& app, CommonFlags& flags) {
   app.add_flag("-q,--quiet", flags.quiet, "No progress bar; warnings and errors only");
   app.add_flag("-v,--verbose", flags.verbose, "Debug messages on stderr");

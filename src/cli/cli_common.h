@@ -9,6 +9,7 @@
 
 #include "epiloc/core/output_file.h"
 #include "epiloc/georef/trajectory_import.h"
+#include "epiloc/io/drive.h"
 #include "epiloc/survey/triangulate.h"
 
 namespace epiloc {
@@ -30,6 +31,10 @@ void AddScanRangeOptions(CLI::App& app, double& min_range_m, double& max_range_m
 void AddTrajectoryImportOptions(CLI::App& app,
                                 TrajectoryImportOptions& import,
                                 std::string& format);
+
+// Puts the import on `drive`'s clock: its frame times and numbers (a pose within 1 ms of a frame
+// takes that frame's number; KITTI poses without a times file take the frames' times).
+void SetDriveFrames(const Drive& drive, TrajectoryImportOptions* import);
 
 // Parses argv; on success applies the common flags (logging, progress style) and returns nullopt;
 // otherwise prints help (exit 0) or one error line plus a hint (exit 2) and returns the code.

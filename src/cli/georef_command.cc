@@ -88,20 +88,13 @@ int RunGeoref(int argc, char** argv) {
   std::vector<GeorefFrame> frames;
   if (!drive_dir.empty()) {
     const Drive drive = LoadDrive(drive_dir);
-    for (const FrameRecord& f : drive.frames) {
-      frames.push_back({f.frame, f.timestamp_s});
-      import.frame_times.push_back(f.timestamp_s);
-      import.frame_numbers.push_back(f.frame);
-    }
+    for (const FrameRecord& f : drive.frames) frames.push_back({f.frame, f.timestamp_s});
+    SetDriveFrames(drive, &import);
   } else if (import.format != TrajectoryFileFormat::kKitti) {
     // One row per VO pose; `epiloc vo` names its drive, whose frame numbers the rows then carry.
     const std::string named = TrajectoryDriveDir(vo_path);
     if (!named.empty() && std::filesystem::is_directory(named)) {
-      const Drive drive = LoadDrive(named);
-      for (const FrameRecord& f : drive.frames) {
-        import.frame_times.push_back(f.timestamp_s);
-        import.frame_numbers.push_back(f.frame);
-      }
+      SetDriveFrames(LoadDrive(named), &import);
     } else if (!named.empty()) {
       spdlog::warn("{}: its drive {} is not there: rows without frame numbers (give --drive)",
                    vo_path, named);
