@@ -11,7 +11,7 @@ seconds=${1:-60}
 shift || true
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${EPILOC_FUZZ_BUILD_DIR:-$root/build-fuzz}
-all=(csv nmea drive_json config cloud trajectory georef db_blob)
+all=(csv nmea drive_json config cloud trajectory stella_map georef db_blob)
 harnesses=("$@")
 ((${#harnesses[@]})) || harnesses=("${all[@]}")
 

@@ -164,6 +164,41 @@ VoStructure VoStructure::FromPoses(std::vector<StampedPose> poses,
   return vo;
 }
 
+VoStructure VoStructure::FromStellaMap(const StellaMap& map,
+                                       std::vector<StampedPose> poses,
+                                       const std::string& path) {
+  EPILOC_CHECK(poses.size() == map.keyframes.size(), "{}: {} poses for the map's {} keyframes",
+               path, poses.size(), map.keyframes.size());
+  VoStructure vo;
+  vo.poses = std::move(poses);
+  for (const StellaLandmark& landmark : map.landmarks) {
+    int first = -1, last = -1, observations = 0;
+    for (const int k : landmark.keyframes) {
+      if (vo.poses[k].frame == kInvalidFrame) continue;
+      if (first < 0) first = k;
+      last = k;
+      ++observations;
+    }
+    if (observations < 2) continue;
+    VoPoint point;
+    point.point_in_world = landmark.position_in_world;
+    point.first_frame = vo.poses[first].frame;
+    point.last_frame = vo.poses[last].frame;
+    point.observations = observations;
+    const Eigen::Vector3d a =
+        landmark.position_in_world - vo.poses[first].world_from_cam.translation;
+    const Eigen::Vector3d b =
+        landmark.position_in_world - vo.poses[last].world_from_cam.translation;
+    point.parallax_deg = std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
+    vo.points.push_back(point);
+  }
+  // In first-frame order, as `epiloc vo` writes them.
+  std::stable_sort(vo.points.begin(), vo.points.end(), [](const VoPoint& a, const VoPoint& b) {
+    return a.first_frame < b.first_frame;
+  });
+  return vo;
+}
+
 VoStructure VoStructure::FromResult(const VoResult& result) {
   VoStructure vo;
   for (const VoFramePose& p : result.poses) {

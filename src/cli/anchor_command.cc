@@ -19,19 +19,34 @@
 #include "epiloc/georef/trajectory_import.h"
 #include "epiloc/io/drive.h"
 #include "epiloc/io/result.h"
+#include "epiloc/io/stella_map.h"
 
 namespace epiloc {
 namespace {
 
 // The trajectory of --vo (ImportTrajectory: any format georef reads, its times put on the
-// drive's clock) with its points (--vo-points, else the points file beside it when there, else
-// none).
+// drive's clock) with its points (--vo-points, else those of a stella_vslam map, else the points
+// file beside it when there, else none).
 VoStructure ReadVoForAnchoring(const Drive& drive,
                                const std::string& vo_path,
                                TrajectoryImportOptions import,
                                const std::string& points_path) {
   SetDriveFrames(drive, &import);
   const ImportedTrajectory trajectory = ImportTrajectory(vo_path, import);
+  if (trajectory.format == TrajectoryFileFormat::kStellaMap && points_path.empty()) {
+    VoStructure vo = VoStructure::FromStellaMap(ReadStellaMap(vo_path), trajectory.poses, vo_path);
+    spdlog::info(
+        "structure: {} landmarks of the stella_vslam map {} seen from 2+ of its {} keyframes",
+        vo.points.size(), vo_path, vo.poses.size());
+    return vo;
+  }
+  if (trajectory.format == TrajectoryFileFormat::kStellaMap) {
+    // The points of --vo-points (a binary map holds no "# segment" comments: one segment).
+    VoStructure vo;
+    vo.poses = trajectory.poses;
+    vo.points = ReadVoPoints(points_path);
+    return vo;
+  }
   std::string points = points_path;
   if (points.empty() && std::filesystem::exists(VoPointsPath(vo_path))) {
     points = VoPointsPath(vo_path);

@@ -145,7 +145,9 @@ void AddScanRangeOptions(CLI::App& app, double& min_range_m, double& max_range_m
 void AddTrajectoryImportOptions(CLI::App& app,
                                 TrajectoryImportOptions& import,
                                 std::string& format) {
-  app.add_option("--vo-format", format, "auto | tum | kitti")->capture_default_str();
+  app.add_option("--vo-format", format,
+                 "auto | tum | kitti | stella_map (stella_vslam map.msg: keyframes and landmarks)")
+      ->capture_default_str();
   app.add_option("--vo-times", import.times_path, "KITTI poses: times file (one per line)");
   app.add_option("--time-offset-s", import.time_offset_s,
                  "Added to the trajectory's times (e.g. the UNIX time of its frame 0)")

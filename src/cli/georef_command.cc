@@ -12,6 +12,7 @@
 #include "epiloc/georef/anchors.h"
 #include "epiloc/georef/georef.h"
 #include "epiloc/io/drive.h"
+#include "epiloc/io/stella_map.h"
 
 namespace epiloc {
 
@@ -90,7 +91,8 @@ int RunGeoref(int argc, char** argv) {
     const Drive drive = LoadDrive(drive_dir);
     for (const FrameRecord& f : drive.frames) frames.push_back({f.frame, f.timestamp_s});
     SetDriveFrames(drive, &import);
-  } else if (import.format != TrajectoryFileFormat::kKitti) {
+  } else if (import.format == TrajectoryFileFormat::kTum ||
+             (import.format == TrajectoryFileFormat::kAuto && !IsMessagePackFile(vo_path))) {
     // One row per VO pose; `epiloc vo` names its drive, whose frame numbers the rows then carry.
     const std::string named = TrajectoryDriveDir(vo_path);
     if (!named.empty() && std::filesystem::is_directory(named)) {

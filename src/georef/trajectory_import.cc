@@ -9,11 +9,12 @@
 
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
+#include "epiloc/io/stella_map.h"
 
 namespace epiloc {
 namespace {
 
-const std::vector<std::string> kFormatNames = {"auto", "tum", "kitti"};
+const std::vector<std::string> kFormatNames = {"auto", "tum", "kitti", "stella_map"};
 constexpr double kNanosecondThreshold = 1e14;  // no plausible time in seconds is this large
 constexpr double kSameTime_s = 1e-3;
 
@@ -61,6 +62,9 @@ ImportedTrajectory ImportTrajectory(const std::string& path,
   trajectory.path = path;
   bool on_drive_clock = false;  // KITTI poses timed by the drive's frames
   trajectory.format = options.format;
+  if (trajectory.format == TrajectoryFileFormat::kAuto && IsMessagePackFile(path)) {
+    trajectory.format = TrajectoryFileFormat::kStellaMap;
+  }
   if (trajectory.format == TrajectoryFileFormat::kAuto) {
     const size_t tokens = FirstLineTokens(path);
     if (tokens == 8) {
@@ -80,6 +84,9 @@ ImportedTrajectory ImportTrajectory(const std::string& path,
     if (!trajectory.poses.empty() && trajectory.poses.front().timestamp_s > kNanosecondThreshold) {
       for (StampedPose& pose : trajectory.poses) pose.timestamp_s *= 1e-9;
     }
+  } else if (trajectory.format == TrajectoryFileFormat::kStellaMap) {
+    EPILOC_CHECK(options.times_path.empty(), "{}: a times file applies to KITTI poses only", path);
+    trajectory.poses = ReadStellaMap(path).keyframes;
   } else {
     trajectory.poses = ReadKittiPoses(path, options.times_path);
     if (options.times_path.empty() && !options.frame_times.empty()) {

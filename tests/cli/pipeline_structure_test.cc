@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 
 #include <fmt/format.h>
@@ -24,7 +25,9 @@
 #include "epiloc/eval/evaluate.h"
 #include "epiloc/io/pose_files.h"
 #include "epiloc/io/result.h"
+#include "epiloc/vo/visual_odometry.h"
 #include "pipeline_test_util.h"
+#include "stella_map_util.h"
 #include "test_util.h"
 
 namespace epiloc {
@@ -263,6 +266,71 @@ TEST(PipelineStructure, AnchorReadsOtherSlamTrajectoriesWithoutPoints) {
   EXPECT_NE(clock.exit_code, 0);
   EXPECT_EQ(NumLines(clock.err), 1) << clock.err;
   EXPECT_NE(clock.err.find("--relative-times"), std::string::npos) << clock.err;
+}
+
+// stella_vslam's map database (map.msg) as `--vo`: its keyframes are the trajectory and its
+// landmarks, with the keyframes that observe them, the structure. The tests' VO written as such a
+// map (every pose a keyframe; each point observed from its first and last keyframe and as many
+// between as it had observations) gives the anchors of the VO's own file and points exactly.
+TEST(PipelineStructure, AnchorReadsAStellaVslamMap) {
+  const std::string world = SharedSyntheticWorld();
+  TempDir dir;
+  const std::string query = world + "/query";
+  MapAndVo(dir, world);
+  const std::vector<StampedPose> poses = ReadTumPoses(dir / "vo.tum");
+  const std::vector<VoPoint> points = ReadVoPoints(VoPointsPath(dir / "vo.tum"));
+  ASSERT_GT(points.size(), 100u);
+  const Drive drive = LoadDrive(query);
+  ASSERT_EQ(poses.size(), drive.frames.size());  // every frame posed, in order
+  std::vector<TestStellaKeyframe> keyframes;
+  std::map<frame_t, size_t> keyframe_of;
+  for (size_t i = 0; i < poses.size(); ++i) {
+    keyframes.push_back(
+        {static_cast<int64_t>(i), poses[i].timestamp_s, poses[i].world_from_cam, {}});
+    keyframe_of[drive.frames[i].frame] = i;
+  }
+  std::vector<TestStellaLandmark> landmarks;
+  for (size_t id = 0; id < points.size(); ++id) {
+    const VoPoint& p = points[id];
+    landmarks.push_back({static_cast<int64_t>(id), p.point_in_world});
+    const size_t first = keyframe_of.at(p.first_frame), last = keyframe_of.at(p.last_frame);
+    std::vector<size_t> seen = {first, last};
+    for (size_t k = first + 1; k < last && static_cast<int>(seen.size()) < p.observations; ++k) {
+      seen.push_back(k);
+    }
+    ASSERT_EQ(static_cast<int>(seen.size()), p.observations) << id;
+    for (const size_t k : seen) {
+      keyframes[k].landmark_ids.push_back(-1);  // a keypoint without a landmark
+      keyframes[k].landmark_ids.push_back(static_cast<int64_t>(id));
+    }
+  }
+  WriteMessagePack(StellaMapJson(keyframes, landmarks), dir / "map.msg");
+  const std::string common = fmt::format(
+      "anchor --cloud {} --drive {} --every 4 --heading-error-deg 5 --camera-height 1.5 "
+      "--structure vo",
+      dir / "map.ply", query);
+  RunEpiloc(fmt::format("{} --vo {} --out {}", common, dir / "vo.tum", dir / "vo.csv"));
+  RunEpiloc(fmt::format("{} --vo {} --out {}", common, dir / "map.msg", dir / "stella.csv"));
+  const ResultTable vo = ReadResultCsv(dir / "vo.csv");
+  const ResultTable stella = ReadResultCsv(dir / "stella.csv");
+  ASSERT_EQ(stella.rows.size(), vo.rows.size());
+  int posed = 0;
+  for (size_t i = 0; i < vo.rows.size(); ++i) {
+    EXPECT_EQ(stella.rows[i].status, vo.rows[i].status) << i;
+    ASSERT_EQ(stella.rows[i].has_position, vo.rows[i].has_position) << i;
+    if (!vo.rows[i].has_position) continue;
+    ++posed;
+    const EnuFrame enu(vo.rows[i].position);
+    EXPECT_LT(enu.ToEnu(stella.rows[i].position).norm(), 1e-3) << i;
+  }
+  EXPECT_GE(posed * 2, static_cast<int>(vo.rows.size()));
+  // A map saved in stella's SQLite format is named as such.
+  WriteText(dir / "map.db", std::string("SQLite format 3") + '\0' + "tables");
+  const CliRun sqlite = RunCli(fmt::format("{} --vo {} --vo-format stella_map --out {} -q", common,
+                                           dir / "map.db", dir / "none.csv"));
+  EXPECT_NE(sqlite.exit_code, 0);
+  EXPECT_EQ(NumLines(sqlite.err), 1) << sqlite.err;
+  EXPECT_NE(sqlite.err.find("SQLite map database"), std::string::npos) << sqlite.err;
 }
 
 // The same chain with the query's SIFT features triangulated along its VO poses as the structure

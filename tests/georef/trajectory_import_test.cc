@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "stella_map_util.h"
 #include "test_util.h"
 
 namespace epiloc {
@@ -30,6 +31,7 @@ TEST(TrajectoryImport, FormatNames) {
   EXPECT_EQ(ParseTrajectoryFileFormat("auto"), TrajectoryFileFormat::kAuto);
   EXPECT_EQ(ParseTrajectoryFileFormat("tum"), TrajectoryFileFormat::kTum);
   EXPECT_EQ(ParseTrajectoryFileFormat("kitti"), TrajectoryFileFormat::kKitti);
+  EXPECT_EQ(ParseTrajectoryFileFormat("stella_map"), TrajectoryFileFormat::kStellaMap);
   ExpectError([] { ParseTrajectoryFileFormat("euroc"); }, {"unknown trajectory format 'euroc'"});
 }
 
@@ -95,6 +97,32 @@ TEST(TrajectoryImport, TumPosesTakeFrameNumbers) {
   options.frame_numbers.pop_back();
   ExpectError([&] { ImportTrajectory(dir / "vo.tum", options); },
               {"3 frame numbers for 4 frame times"});
+}
+
+// stella_vslam's map.msg (io/stella_map.h): its keyframes, in time order, recognised by the
+// file's first byte and put on the drive's clock and frames like a TUM file.
+TEST(TrajectoryImport, ReadsAStellaMapsKeyframes) {
+  TempDir dir;
+  const Rigid3d turned(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY())),
+                       Eigen::Vector3d(0.5, -0.1, 2.0));
+  WriteMessagePack(StellaMapJson({{4, 0.2, turned, {}}, {0, 0.0, Rigid3d(), {}}}, {}),
+                   dir / "map.msg");
+  TrajectoryImportOptions options;
+  options.relative_times = true;
+  options.frame_times = {500.0, 500.1, 500.2};
+  options.frame_numbers = {7, 8, 9};
+  const ImportedTrajectory t = ImportTrajectory(dir / "map.msg", options);
+  EXPECT_EQ(t.format, TrajectoryFileFormat::kStellaMap);
+  ASSERT_EQ(t.poses.size(), 2u);
+  EXPECT_DOUBLE_EQ(t.poses[0].timestamp_s, 500.0);
+  EXPECT_EQ(t.poses[0].frame, 7);
+  EXPECT_EQ(t.poses[1].frame, 9);
+  EXPECT_LT((t.poses[1].world_from_cam.translation - turned.translation).norm(), 1e-12);
+  EXPECT_LT(RotationDifferenceDeg(t.poses[1].world_from_cam.rotation, turned.rotation), 1e-9);
+  EXPECT_EQ(TrajectoryDriveDir(dir / "map.msg"), "");
+  options.times_path = dir / "times.txt";
+  ExpectError([&] { ImportTrajectory(dir / "map.msg", options); },
+              {"a times file applies to KITTI poses only"});
 }
 
 TEST(TrajectoryImport, ReadsKittiWithEachSourceOfTimes) {

@@ -53,6 +53,7 @@
 #include "epiloc/anchor/structure_registration.h"
 #include "epiloc/geo/rigid3.h"
 #include "epiloc/io/pose_files.h"
+#include "epiloc/io/stella_map.h"
 #include "epiloc/vo/visual_odometry.h"
 
 namespace epiloc {
@@ -153,6 +154,15 @@ struct VoStructure {
   static VoStructure FromPoses(std::vector<StampedPose> poses,
                                const std::string& trajectory_path,
                                const std::string& points_path);
+  // A stella_vslam map (io/stella_map.h, read from `path`): `poses` are its keyframes in its
+  // order, put on the drive's clock and frames (georef's ImportTrajectory); its landmarks become
+  // the points: first and last observing keyframe's frame, the count of observing keyframes, the
+  // angle between the rays from those two. Keyframes on no drive frame do not count; a landmark
+  // seen from fewer than two of the others is left out. One segment. Throws Error naming `path`
+  // when `poses` do not match the map's keyframes.
+  static VoStructure FromStellaMap(const StellaMap& map,
+                                   std::vector<StampedPose> poses,
+                                   const std::string& path);
   // The same from an odometry run in memory (VoOptions::keep_points).
   static VoStructure FromResult(const VoResult& result);
   // A copy whose poses carry the frame numbers of `drive`: the frame at each pose's time (within

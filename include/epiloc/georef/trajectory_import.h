@@ -10,6 +10,8 @@
 //  - kitti: 12 numbers per line (ORB-SLAM2 SaveTrajectoryKITTI, stella_vslam KITTI format): line i
 //           is the i-th frame; its time is line i of `times_path` (ORB-SLAM's times.txt), else
 //           the time of the i-th frame of the drive (`frame_times`), else i seconds.
+//  - stella_map: stella_vslam's map database (map.msg, MessagePack; io/stella_map.h): its
+//           keyframes, in time order (auto: a file that starts as a MessagePack map).
 // ORB-SLAM and KITTI odometry times are seconds since the sequence start: give `time_offset_s`
 // (added to every time) or `relative_times` (offset = time of the drive's first frame; KITTI
 // poses timed by the drive's frames are on its clock already and keep their times).
@@ -24,8 +26,8 @@
 
 namespace epiloc {
 
-enum class TrajectoryFileFormat { kAuto, kTum, kKitti };
-// "auto", "tum", "kitti"; unknown names throw Error.
+enum class TrajectoryFileFormat { kAuto, kTum, kKitti, kStellaMap };
+// "auto", "tum", "kitti", "stella_map"; unknown names throw Error.
 TrajectoryFileFormat ParseTrajectoryFileFormat(const std::string& name);
 
 struct TrajectoryImportOptions {
