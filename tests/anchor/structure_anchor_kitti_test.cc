@@ -59,6 +59,7 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   // all as weak along the road, README).
   struct Figures {
     std::vector<double> horizontal, rotation;
+    double ok_max_horizontal = 0.0;  // of the anchors called ok
     int ok = 0;
     double seconds = 0.0;
     size_t anchors = 0;
@@ -83,6 +84,9 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
       if (!truth) continue;
       f.horizontal.push_back((a.map_from_cam.translation - truth->translation).head<2>().norm());
       f.rotation.push_back(RotationDifferenceDeg(a.map_from_cam.rotation, truth->rotation));
+      if (a.status == AnchorStatus::kOk) {
+        f.ok_max_horizontal = std::max(f.ok_max_horizontal, f.horizontal.back());
+      }
       std::printf(
           "%s frame %3lld: %s %.3f m, %.2f deg, share %.2f, residual %.3f m, scale %.4f, drift "
           "%.2f %% per 10 m, along sigma %.3f m\n",
@@ -151,12 +155,40 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   // the road rejected), horizontal median 0.123 m, max 0.405 m (frame 0, at the drive's start);
   // with the drift from the neighbours' scales only 13 of 16 ok, 0.115 / 0.238 m, 0.20 / 0.43 deg;
   // rotation median 0.19 deg, max 0.43 deg; 0.6-1.6 s per anchor (2 threads, the machine
-  // otherwise busy or not). The targets, but for the ok share (90 %).
+  // otherwise busy or not); with the drift kept only where it fits the map better (sixth
+  // session) 14 of 16 ok, 0.125 / 0.238 m, 0.17 / 0.43 deg. The targets, but for the ok share
+  // (90 %).
   ASSERT_GE(lidar.horizontal.size() * 4, lidar.anchors * 3);
   EXPECT_GE(lidar.ok * 8, static_cast<int>(lidar.anchors) * 5);
   EXPECT_LE(Median(lidar.horizontal), 0.2);
   EXPECT_LE(*std::max_element(lidar.horizontal.begin(), lidar.horizontal.end()), 0.5);
   EXPECT_LE(Median(lidar.rotation), 0.5);
+
+  // Another camera of the same drive: camera 0 (0.54 m to the left, its own images and VO; the
+  // GNSS drawn with another seed) on the same map and the LiDAR's path. Its VO's scale stays flat
+  // over the first 15 m and then falls 3-4 % per 10 m; the drift the neighbours' scales give,
+  // extrapolated to the drive's start, put frames 0-30 0.5-1.7 m behind along the road (all
+  // rejected by the neighbours' check; median 0.256 m). With the drift kept only where it fits
+  // the map better (structure_passes.cc), measured 2026-11-28 (sixth session): 5 of 16 ok, every
+  // ok anchor within 0.18 m, median 0.167 m, max 1.10 m (frame 20, rejected). Asserted with a
+  // margin: the ok anchors and the median, not the max.
+  KittiImportOptions cam0_noisy = cam1_all;
+  cam0_noisy.camera = 0;
+  cam0_noisy.seed = 2;
+  cam0_noisy.out_dir = dir / "cam0_noisy";
+  const Drive cam0_whole = ImportKitti(cam0_noisy);
+  WriteDrive(CorrectDriveTrack(cam0_whole, track_frame, track), dir / "cam0_noisy_lidar");
+  AnchorInputs cam0_inputs = lidar_inputs;
+  cam0_inputs.drive_dir = dir / "cam0_noisy_lidar";
+  const Drive cam0_lidar_drive = LoadDrive(cam0_inputs.drive_dir);
+  const Figures other =
+      run_on(cam0_inputs, cam0_lidar_drive,
+             VoStructure::FromResult(RunVisualOdometry(cam0_lidar_drive, VoOptions())), options,
+             "camera 0, LiDAR-consistent track");
+  ASSERT_GE(other.horizontal.size() * 4, other.anchors * 3);
+  EXPECT_GE(other.ok * 4, static_cast<int>(other.anchors));
+  EXPECT_LE(other.ok_max_horizontal, 0.3);
+  EXPECT_LE(Median(other.horizontal), 0.25);
 }
 
 }  // namespace
