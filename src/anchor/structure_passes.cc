@@ -189,9 +189,9 @@ std::vector<double> DriftAcrossAnchors(const std::vector<Posed>& posed,
           a.scale_m_per_unit;
       if (std::abs(x) <= 0.5 * options.window_m) xy.push_back({x, std::log(b.scale_m_per_unit)});
     }
-    if (const auto slope = LeastSquaresSlope(xy, 3, 0.25 * options.window_m)) {
-      drift[i] = std::clamp(*slope, -limit, limit);
-    }
+    // A slope beyond the limit is no usable VO's drift: the line does not hold there (none).
+    const auto slope = LeastSquaresSlope(xy, 3, 0.25 * options.window_m);
+    if (slope && std::abs(*slope) <= limit) drift[i] = *slope;
   }
   return drift;
 }

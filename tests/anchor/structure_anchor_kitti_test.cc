@@ -169,9 +169,9 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   // over the first 15 m and then falls 3-4 % per 10 m; the drift the neighbours' scales give,
   // extrapolated to the drive's start, put frames 0-30 0.5-1.7 m behind along the road (all
   // rejected by the neighbours' check; median 0.256 m). With the drift kept only where it fits
-  // the map better (structure_passes.cc), measured 2026-11-28 (sixth session): 5 of 16 ok, every
-  // ok anchor within 0.18 m, median 0.167 m, max 1.10 m (frame 20, rejected). Asserted with a
-  // margin: the ok anchors and the median, not the max.
+  // the map better, and none where the line asks for more than a usable VO drifts
+  // (structure_passes.cc), measured 2026-11-28 (sixth session): 6 of 16 ok, every ok anchor
+  // within 0.24 m, median 0.173 m, max 0.376 m, rotation max 0.47 deg. Asserted with a margin.
   KittiImportOptions cam0_noisy = cam1_all;
   cam0_noisy.camera = 0;
   cam0_noisy.seed = 2;
@@ -189,6 +189,7 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   EXPECT_GE(other.ok * 4, static_cast<int>(other.anchors));
   EXPECT_LE(other.ok_max_horizontal, 0.3);
   EXPECT_LE(Median(other.horizontal), 0.25);
+  EXPECT_LE(*std::max_element(other.horizontal.begin(), other.horizontal.end()), 0.6);
 }
 
 }  // namespace
