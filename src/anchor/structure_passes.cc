@@ -156,14 +156,14 @@ std::vector<PlacedAnchor> Place(const std::vector<Posed>& posed,
 // The VO's scale drift at each posed anchor (ScaleDriftModel::kAcrossAnchors): the slope of the
 // log of the anchors' scales (metres per VO unit) over their distance along the VO path (metres,
 // at the anchor's scale), by least squares over the other anchors of its segment within half
-// the window; 0 (none known) with fewer than three of them or spread over less than a quarter
-// of the window. The anchor's own scale is left out: it is the one the drift then corrects, and
-// at a drive's end, where its window has cameras on one side only, it sat at the end of the
-// regression and steepened it (KITTI frames 0 and 150 on the LiDAR's path: 0.31 and 0.37 m
-// behind along the road with it, 0.08 m behind and 0.01 m ahead without). A window's scale is the
-// drifting scale averaged over its structure: the average moves with the drift (the slope is the
-// drift's), and no window's fit can trade a drift for a move along the road (as the per-window
-// estimate does on a street of facades).
+// the window; 0 (none known) with fewer than three of them, spread over less than a quarter
+// of the window, or a slope beyond max_scale_drift_per_m. The anchor's own scale is left out: it is
+// the one the drift then corrects, and at a drive's end, where its window has cameras on one side
+// only, it sat at the end of the regression and steepened it (KITTI frames 0 and 150 on the LiDAR's
+// path: 0.31 and 0.37 m behind along the road with it, 0.08 m behind and 0.01 m ahead without). A
+// window's scale is the drifting scale averaged over its structure: the average moves with the
+// drift (the slope is the drift's), and no window's fit can trade a drift for a move along the road
+// (as the per-window estimate does on a street of facades).
 std::vector<double> DriftAcrossAnchors(const std::vector<Posed>& posed,
                                        const VoStructure& vo,
                                        const AnchorDriveResult& out,
