@@ -32,9 +32,10 @@ VoStructure ReadVoForAnchoring(const Drive& drive,
                                TrajectoryImportOptions import,
                                const std::string& points_path) {
   SetDriveFrames(drive, &import);
-  const ImportedTrajectory trajectory = ImportTrajectory(vo_path, import);
+  StellaMap stella_map;
+  const ImportedTrajectory trajectory = ImportTrajectory(vo_path, import, &stella_map);
   if (trajectory.format == TrajectoryFileFormat::kStellaMap && points_path.empty()) {
-    VoStructure vo = VoStructure::FromStellaMap(ReadStellaMap(vo_path), trajectory.poses, vo_path);
+    VoStructure vo = VoStructure::FromStellaMap(stella_map, trajectory.poses, vo_path);
     spdlog::info(
         "structure: {} landmarks of the stella_vslam map {} seen from 2+ of its {} keyframes",
         vo.points.size(), vo_path, vo.poses.size());

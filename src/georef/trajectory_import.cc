@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -56,7 +57,8 @@ void TrajectoryImportOptions::Check() const {
 }
 
 ImportedTrajectory ImportTrajectory(const std::string& path,
-                                    const TrajectoryImportOptions& options) {
+                                    const TrajectoryImportOptions& options,
+                                    StellaMap* stella_map) {
   options.Check();
   ImportedTrajectory trajectory;
   trajectory.path = path;
@@ -86,7 +88,9 @@ ImportedTrajectory ImportTrajectory(const std::string& path,
     }
   } else if (trajectory.format == TrajectoryFileFormat::kStellaMap) {
     EPILOC_CHECK(options.times_path.empty(), "{}: a times file applies to KITTI poses only", path);
-    trajectory.poses = ReadStellaMap(path).keyframes;
+    StellaMap map = ReadStellaMap(path);
+    trajectory.poses = map.keyframes;
+    if (stella_map) *stella_map = std::move(map);
   } else {
     trajectory.poses = ReadKittiPoses(path, options.times_path);
     if (options.times_path.empty() && !options.frame_times.empty()) {

@@ -111,8 +111,12 @@ TEST(TrajectoryImport, ReadsAStellaMapsKeyframes) {
   options.relative_times = true;
   options.frame_times = {500.0, 500.1, 500.2};
   options.frame_numbers = {7, 8, 9};
-  const ImportedTrajectory t = ImportTrajectory(dir / "map.msg", options);
+  StellaMap map;
+  const ImportedTrajectory t = ImportTrajectory(dir / "map.msg", options, &map);
   EXPECT_EQ(t.format, TrajectoryFileFormat::kStellaMap);
+  ASSERT_EQ(map.keyframes.size(), 2u);  // the map as read, before the re-timing
+  EXPECT_EQ(map.keyframes[1].timestamp_s, 0.2);
+  EXPECT_EQ(map.keyframe_ids, (std::vector<int64_t>{0, 4}));
   ASSERT_EQ(t.poses.size(), 2u);
   EXPECT_DOUBLE_EQ(t.poses[0].timestamp_s, 500.0);
   EXPECT_EQ(t.poses[0].frame, 7);

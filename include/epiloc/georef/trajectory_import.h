@@ -23,6 +23,7 @@
 
 #include "epiloc/core/types.h"
 #include "epiloc/io/pose_files.h"
+#include "epiloc/io/stella_map.h"
 
 namespace epiloc {
 
@@ -58,8 +59,11 @@ std::string TrajectoryDriveDir(const std::string& path);
 // Reads and re-times a trajectory. Throws Error "<path>:<line>: ..." for malformed lines (see
 // io/pose_files.h), "<path>: ..." for an empty file, relative_times without frame times, or KITTI
 // poses that do not match a given number of frame times.
+// A stella_vslam map is read whole; `stella_map` (optional) then gets it (its keyframes as read,
+// before the re-timing), so that its landmarks need not be read again.
 ImportedTrajectory ImportTrajectory(const std::string& path,
-                                    const TrajectoryImportOptions& options);
+                                    const TrajectoryImportOptions& options,
+                                    StellaMap* stella_map = nullptr);
 
 // The pose at `timestamp_s`: the pose itself when within 1 ms of one, else linear interpolation
 // of the centre and slerp of the rotation between the neighbours, provided they are at most
