@@ -185,8 +185,7 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
       point.first_frame = s.first;
       point.last_frame = s.last;
       point.observations = s.observations;
-      const Eigen::Vector3d a = s.position - s.first_centre, b = s.position - s.last_centre;
-      point.parallax_deg = std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
+      point.parallax_deg = ParallaxDeg(s.position, s.first_centre, s.last_centre);
       out.points.push_back(point);
     }
     sums.points += static_cast<int64_t>(seen.size());

@@ -80,14 +80,14 @@ ImportedTrajectory ImportTrajectory(const std::string& path,
           path, tokens);
     }
   }
+  EPILOC_CHECK(trajectory.format == TrajectoryFileFormat::kKitti || options.times_path.empty(),
+               "{}: a times file applies to KITTI poses only", path);
   if (trajectory.format == TrajectoryFileFormat::kTum) {
-    EPILOC_CHECK(options.times_path.empty(), "{}: a times file applies to KITTI poses only", path);
     trajectory.poses = ReadTumPoses(path);
     if (!trajectory.poses.empty() && trajectory.poses.front().timestamp_s > kNanosecondThreshold) {
       for (StampedPose& pose : trajectory.poses) pose.timestamp_s *= 1e-9;
     }
   } else if (trajectory.format == TrajectoryFileFormat::kStellaMap) {
-    EPILOC_CHECK(options.times_path.empty(), "{}: a times file applies to KITTI poses only", path);
     StellaMap map = ReadStellaMap(path);
     trajectory.poses = map.keyframes;
     if (stella_map) *stella_map = std::move(map);

@@ -500,13 +500,9 @@ VoResult VisualOdometry::Impl::Result() const {
       point.first_frame = first.frame;
       point.last_frame = map_.keyframe(track->observations.back().first).frame;
       point.observations = static_cast<int>(track->observations.size());
-      const Eigen::Vector3d ray_first =
-          track->point_in_world - Centre(first.cam_from_world);
-      const Eigen::Vector3d ray_last =
-          track->point_in_world -
-          Centre(map_.keyframe(track->observations.back().first).cam_from_world);
-      point.parallax_deg = std::atan2(ray_first.cross(ray_last).norm(), ray_first.dot(ray_last)) *
-                           180.0 / M_PI;
+      point.parallax_deg =
+          ParallaxDeg(track->point_in_world, Centre(first.cam_from_world),
+                      Centre(map_.keyframe(track->observations.back().first).cam_from_world));
       result.points.push_back(point);
     }
     std::sort(result.points.begin(), result.points.end(), [](const VoPoint& a, const VoPoint& b) {
@@ -535,5 +531,12 @@ VoFrameStatus VisualOdometry::ProcessFrame(frame_t frame,
 void VisualOdometry::Finish() { impl_->Finish(); }
 
 VoResult VisualOdometry::Result() const { return impl_->Result(); }
+
+double ParallaxDeg(const Eigen::Vector3d& point,
+                   const Eigen::Vector3d& first_centre,
+                   const Eigen::Vector3d& last_centre) {
+  const Eigen::Vector3d a = point - first_centre, b = point - last_centre;
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
+}
 
 }  // namespace epiloc

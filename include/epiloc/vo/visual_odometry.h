@@ -129,6 +129,12 @@ struct VoPoint {
                                         // them (a small angle: an uncertain depth)
 };
 
+// VoPoint::parallax_deg of a point seen from two camera centres: the angle between the rays,
+// degrees.
+double ParallaxDeg(const Eigen::Vector3d& point,
+                   const Eigen::Vector3d& first_centre,
+                   const Eigen::Vector3d& last_centre);
+
 struct VoResult {
   std::vector<VoFramePose> poses;  // posed frames in time order
   std::vector<VoPoint> points;     // map points (VoOptions::keep_points), by first_frame
