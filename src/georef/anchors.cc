@@ -35,6 +35,16 @@ class Gaussian {
   double spare_ = 0.0;
 };
 
+// The number in extra column `at` of `row`: nullopt where the column is missing or empty, or
+// its text is not a finite number.
+std::optional<double> OptionalNumber(const ResultRow& row, size_t at) {
+  if (at >= row.extra.size() || row.extra[at].empty()) return std::nullopt;
+  char* end = nullptr;
+  const double value = std::strtod(row.extra[at].c_str(), &end);
+  if (!end || *end != '\0' || !std::isfinite(value)) return std::nullopt;
+  return value;
+}
+
 }  // namespace
 
 AnchorSet ReadAnchors(const std::string& path, const std::string& method) {
@@ -44,6 +54,9 @@ AnchorSet ReadAnchors(const std::string& path, const std::string& method) {
   const auto scale_column =
       std::find(table.extra_columns.begin(), table.extra_columns.end(), "scale_m_per_unit");
   const size_t scale_at = static_cast<size_t>(scale_column - table.extra_columns.begin());
+  const auto drift_column =
+      std::find(table.extra_columns.begin(), table.extra_columns.end(), "scale_drift_per_m");
+  const size_t drift_at = static_cast<size_t>(drift_column - table.extra_columns.begin());
   bool any = false;
   for (const ResultRow& row : table.rows) {
     if (row.method != method) continue;
@@ -57,15 +70,12 @@ AnchorSet ReadAnchors(const std::string& path, const std::string& method) {
     anchor.timestamp_s = row.timestamp_s;
     anchor.position = row.position;
     anchor.enu_from_cam = row.enu_from_cam;
-    if (scale_at < row.extra.size() && !row.extra[scale_at].empty()) {
-      // A scale that does not parse or is not positive is no scale (the other columns decide
-      // whether the row is an anchor).
-      char* end = nullptr;
-      const double scale = std::strtod(row.extra[scale_at].c_str(), &end);
-      if (end && *end == '\0' && std::isfinite(scale) && scale > 0.0) {
-        anchor.scale_m_per_unit = scale;
-      }
+    // A scale that does not parse or is not positive is no scale, a drift that does not parse
+    // or is not finite no drift (the other columns decide whether the row is an anchor).
+    if (const std::optional<double> scale = OptionalNumber(row, scale_at); scale && *scale > 0.0) {
+      anchor.scale_m_per_unit = scale;
     }
+    anchor.scale_drift_per_m = OptionalNumber(row, drift_at);
     anchor.line = row.line;
     set.anchors.push_back(anchor);
   }

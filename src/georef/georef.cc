@@ -22,7 +22,7 @@ GeorefTransform MakeTransform(GeorefMethod method,
     case GeorefMethod::kSim3:
       return Sim3Transform(anchors);
     case GeorefMethod::kPiecewise:
-      return PiecewiseTransform(anchors, options.min_anchor_spacing_m);
+      return PiecewiseTransform(anchors, options.min_anchor_spacing_m, options.end_drift_reach_m);
   }
   Throw("unknown georeferencing method");
 }
@@ -60,6 +60,8 @@ void GeorefOptions::Check() const {
                "--paper-second-anchor must be -1 (last) or >= 1, got {}", paper_second_anchor);
   EPILOC_CHECK(min_anchor_spacing_m >= 0.0, "--min-anchor-spacing-m must be >= 0, got {}",
                min_anchor_spacing_m);
+  EPILOC_CHECK(end_drift_reach_m >= 0.0, "--end-drift-reach-m must be >= 0, got {}",
+               end_drift_reach_m);
 }
 
 GeorefResult Georeference(const ImportedTrajectory& trajectory,
@@ -97,6 +99,7 @@ GeorefResult Georeference(const ImportedTrajectory& trajectory,
     pair.vo_from_cam = vo_poses[i];
     pair.centre_in_enu = enu.ToEnu(a.position);
     pair.scale_m_per_unit = a.scale_m_per_unit;
+    pair.scale_drift_per_m = a.scale_drift_per_m;
     if (a.enu_from_cam) {
       pair.enu_from_cam =
           Eigen::Quaterniond(enu.EnuFromLocalEnu(a.position) * a.enu_from_cam->toRotationMatrix())

@@ -46,6 +46,21 @@ Rigid3d GeorefTransform::Map(double timestamp_s, const Rigid3d& vo_from_cam, dou
     }
   }
   Eigen::Vector3d centre = sim * vo_from_cam.translation;
+  const EndDrift* drift = first && before_drift ? &*before_drift
+                          : last && after_drift ? &*after_drift
+                                                : nullptr;
+  if (drift) {
+    // The relative scale r(x) = 1 + per_m clamp(x, -reach, reach) at x metres of road from the
+    // anchor (negative before it), integrated from it: X = X_a + s R d (integral_0^x r) / x.
+    const Eigen::Vector3d d = vo_from_cam.translation - drift->vo_anchor;
+    const double x = (last ? 1.0 : -1.0) * sim.scale * d.norm();
+    const double reach = drift->reach_m;
+    const double held =
+        std::abs(x) <= reach ? 0.5 * x * x : reach * std::abs(x) - 0.5 * reach * reach;
+    const double mean = x == 0.0 ? 1.0 : 1.0 + drift->per_m * held / x;
+    centre = drift->enu_anchor + sim.scale * mean * (sim.rotation * d);
+    if (scale) *scale = sim.scale * (1.0 + drift->per_m * std::clamp(x, -reach, reach));
+  }
   if (!ramps.empty() && !first && !last) {
     // X = X_a + s R (integral_0^l r * chord + r(l) * (x - x_a - l chord)), r the relative scale.
     const Ramp& r = ramps[k];
@@ -119,7 +134,8 @@ GeorefTransform Sim3Transform(const std::vector<AnchorPair>& anchors) {
 }
 
 GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
-                                   double min_anchor_spacing_m) {
+                                   double min_anchor_spacing_m,
+                                   double end_drift_reach_m) {
   RequireOrientations(anchors, "piecewise");
   std::vector<const AnchorPair*> kept;
   for (const AnchorPair& a : anchors) {
@@ -202,6 +218,18 @@ GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
   transform.before =
       end_sim(*kept.front(), transform.intervals.front(), transform.rotations.front());
   transform.after = end_sim(*kept.back(), transform.intervals.back(), transform.rotations.back());
+  // And the end anchors' drifts, where their scales are this trajectory's: a drift is a VO's
+  // own, and another trajectory's scale drifts elsewhere.
+  const auto end_drift = [&](const AnchorPair& a) -> std::optional<GeorefTransform::EndDrift> {
+    if (!own_scales || !a.scale_drift_per_m || *a.scale_drift_per_m == 0.0 ||
+        end_drift_reach_m <= 0.0) {
+      return std::nullopt;
+    }
+    return GeorefTransform::EndDrift{a.vo_from_cam.translation, a.centre_in_enu,
+                                     *a.scale_drift_per_m, end_drift_reach_m};
+  };
+  transform.before_drift = end_drift(*kept.front());
+  transform.after_drift = end_drift(*kept.back());
   return transform;
 }
 

@@ -130,6 +130,9 @@ TEST(Georef, MethodNames) {
   options = GeorefOptions();
   options.paper_second_anchor = 0;
   ExpectError([&] { options.Check(); }, {"--paper-second-anchor"});
+  options = GeorefOptions();
+  options.end_drift_reach_m = -1.0;
+  ExpectError([&] { options.Check(); }, {"--end-drift-reach-m must be >= 0"});
 }
 
 // Eq. 5-7 by hand. VO frame = the first camera's frame, VO origin at the first anchor. The
@@ -423,12 +426,99 @@ TEST(Georef, PiecewiseTakesTheAnchorsOwnScalesInsideAndBeyondThem) {
   EXPECT_NE(some.ramps[5].start, 1.0);
 }
 
+// Anchors that also carry the VO's scale drift their fit found (structure anchors): beyond the end
+// anchors the trajectory goes on with the scale drifting as it did there, for the reach over
+// which an anchor's fit measured it, and held beyond; another trajectory's drift is not taken.
+TEST(Georef, PiecewiseFollowsTheEndAnchorsDriftBeyondThem) {
+  const int frames = 241;
+  // The scale falls by a third over the drive (a monocular VO's drift of 1.4-2 % per 10 m).
+  const double drift = 0.5;
+  const SyntheticRun run = MakeRun(frames, drift, 0.0);
+  // Anchors every 20 m from frame 40 to 200: 40 frames (metres) to extrapolate at either end.
+  const auto anchors = [&](double unit, bool with_drift) {
+    std::vector<AnchorPair> out;
+    for (size_t i = 40; i <= 200; i += 20) {
+      AnchorPair a =
+          MakeAnchor(run.times[i], run.vo_from_cam[i], run.centre_in_enu[i], run.enu_from_cam[i]);
+      // MakeRun's scale, metres per VO unit, 1 / (0.2 (1 + drift w)) at w = i / frames (1 m per
+      // frame), and its relative change per metre of road: -drift / frames / (1 + drift w).
+      const double w = static_cast<double>(i) / frames;
+      a.scale_m_per_unit = unit / (0.2 * (1.0 + drift * w));
+      if (with_drift) a.scale_drift_per_m = -drift / frames / (1.0 + drift * w);
+      out.push_back(a);
+    }
+    return out;
+  };
+  // The largest error before the first and after the last anchor, and within 20 m of them.
+  struct Beyond {
+    double near = 0.0, far = 0.0;
+  };
+  const auto beyond = [&](const GeorefTransform& transform) {
+    Beyond b;
+    for (size_t i = 0; i < run.times.size(); ++i) {
+      if (i >= 40 && i <= 200) continue;
+      const double d =
+          (transform.Map(run.times[i], run.vo_from_cam[i]).translation - run.centre_in_enu[i])
+              .norm();
+      const bool near = i >= 20 && i <= 220;
+      (near ? b.near : b.far) = std::max(near ? b.near : b.far, d);
+    }
+    return b;
+  };
+  const GeorefTransform held = PiecewiseTransform(anchors(1.0, false));
+  const GeorefTransform drifting = PiecewiseTransform(anchors(1.0, true));
+  const GeorefTransform unbounded = PiecewiseTransform(anchors(1.0, true), 1.0, 1000.0);
+  const GeorefTransform off = PiecewiseTransform(anchors(1.0, true), 1.0, 0.0);
+  const GeorefTransform other = PiecewiseTransform(anchors(3.0, true));
+  EXPECT_FALSE(held.after_drift.has_value());
+  ASSERT_TRUE(drifting.before_drift.has_value());
+  ASSERT_TRUE(drifting.after_drift.has_value());
+  EXPECT_FALSE(off.after_drift.has_value());
+  EXPECT_FALSE(other.after_drift.has_value());
+  const Beyond h = beyond(held), d = beyond(drifting), u = beyond(unbounded);
+  std::printf(
+      "max error within 20 m / 20-40 m beyond the end anchors: the end anchors' scales held "
+      "%.3f / %.3f m, their drifts followed for 20 m %.3f / %.3f m, for ever %.3f / %.3f m\n",
+      h.near, h.far, d.near, d.far, u.near, u.far);
+  // Held, the scale is 3.3 % off 20 m on and the position by about drift' x^2 / 2 = 0.33 m
+  // there (1.3 m at 40 m); the drift followed leaves its own change along the way (the drift is
+  // the anchor's, 1 / (1 + drift w) bends) and the chord's shortening on the 150 m arc.
+  EXPECT_GT(h.near, 0.25);
+  EXPECT_LT(d.near, 0.1 * h.near);
+  // Beyond the reach the scale reached at 20 m is held: the error grows again, though less
+  // than with the end anchor's scale held from the anchor; followed for ever, exact to the
+  // drive's ends but for the drift's own bend and the chord.
+  EXPECT_LT(d.far, 0.5 * h.far);
+  EXPECT_LT(u.far, 0.5 * d.far);
+  EXPECT_NEAR(d.near, u.near, 1e-12);
+  // Reach 0 (off), and another trajectory's drift (its scales three times these units): the
+  // end anchors' scales held, as without drifts.
+  EXPECT_NEAR(beyond(off).far, h.far, 1e-12);
+  EXPECT_NEAR(beyond(other).far, beyond(PiecewiseTransform(anchors(3.0, false))).far, 1e-12);
+  // Exact at the anchors, with the scale there.
+  for (const AnchorPair& a : anchors(1.0, true)) {
+    double scale = 0.0;
+    EXPECT_LT(
+        (drifting.Map(a.timestamp_s, a.vo_from_cam, &scale).translation - a.centre_in_enu).norm(),
+        1e-9);
+  }
+  // The scale reported beyond: the end's, changed by the end anchor's drift over the distance.
+  const AnchorPair last = anchors(1.0, true).back();
+  double scale = 0.0;
+  drifting.Map(run.times[210], run.vo_from_cam[210], &scale);
+  const double end_scale = drifting.after->scale;
+  const double x =
+      end_scale * (run.vo_from_cam[210].translation - last.vo_from_cam.translation).norm();
+  EXPECT_NEAR(scale, end_scale * (1.0 + *last.scale_drift_per_m * x), 1e-9);
+}
+
 // The anchors file's scale_m_per_unit column: a positive number is the anchor's scale; empty,
-// not a number, or not positive is none (the row stays an anchor).
+// not a number, or not positive is none (the row stays an anchor). scale_drift_per_m: any finite
+// number is the anchor's drift.
 TEST(Georef, ReadsTheAnchorsOwnScales) {
   const TempDir dir;
   ResultTable table;
-  table.extra_columns = {"scale_m_per_unit"};
+  table.extra_columns = {"scale_m_per_unit", "scale_drift_per_m"};
   const std::vector<std::string> values = {"1.25", "", "nan", "-2", "abc", "0.5x"};
   for (size_t i = 0; i < values.size(); ++i) {
     ResultRow row;
@@ -439,7 +529,7 @@ TEST(Georef, ReadsTheAnchorsOwnScales) {
     row.position = Geodetic{49.0, 8.4 + 1e-5 * static_cast<double>(i), 115.0};
     row.has_position = true;
     row.enu_from_cam = Eigen::Quaterniond::Identity();
-    row.extra = {values[i]};
+    row.extra = {values[i], values[i]};
     table.rows.push_back(row);
   }
   WriteResultCsv(table, dir / "anchors.csv");
@@ -450,12 +540,18 @@ TEST(Georef, ReadsTheAnchorsOwnScales) {
   for (size_t i = 1; i < values.size(); ++i) {
     EXPECT_FALSE(set.anchors[i].scale_m_per_unit.has_value()) << values[i];
   }
+  EXPECT_EQ(set.anchors[0].scale_drift_per_m, 1.25);
+  EXPECT_EQ(set.anchors[3].scale_drift_per_m, -2.0);
+  for (const size_t i : {1, 2, 4, 5}) {
+    EXPECT_FALSE(set.anchors[i].scale_drift_per_m.has_value()) << values[i];
+  }
   // Without the column: no scales.
   table.extra_columns.clear();
   for (ResultRow& row : table.rows) row.extra.clear();
   WriteResultCsv(table, dir / "plain.csv");
   for (const Anchor& a : ReadAnchors(dir / "plain.csv").anchors) {
     EXPECT_FALSE(a.scale_m_per_unit.has_value());
+    EXPECT_FALSE(a.scale_drift_per_m.has_value());
   }
 }
 

@@ -26,6 +26,10 @@ struct Anchor {
   // The anchor's own scale of the trajectory it was anchored on (metres per VO unit; column
   // scale_m_per_unit, which `epiloc anchor --method structure` writes), when the file has one.
   std::optional<double> scale_m_per_unit;
+  // The VO's scale drift the anchor's fit applied (relative change of scale per metre of road,
+  // positive: growing with time; column scale_drift_per_m, `epiloc anchor --method structure`),
+  // when the file has one.
+  std::optional<double> scale_drift_per_m;
   int64_t line = 0;  // of the anchors file
 };
 

@@ -36,7 +36,12 @@
 //    scale to the anchors' mean scale), else the end interval's: an interval's chord gives its
 //    mean scale and the mean heading of its two anchors' positions, and a drifting VO's scale at
 //    the drive's end is not the last interval's mean (shared KITTI drive, VO scale 7 % lower at
-//    the end than over the last interval: 0.70 m off after 15 m, against 0.16 m).
+//    the end than over the last interval: 0.70 m off after 15 m, against 0.16 m). Where the end
+//    anchor also carries the VO's scale drift its fit found (structure anchors' column
+//    scale_drift_per_m; this trajectory's scales only), the scale goes on drifting so from it
+//    for `end_drift_reach_m` and is held beyond (GeorefTransform::EndDrift): the KITTI drive's
+//    VO falls 2-3 % per 10 m, and 19 m past the last ok anchor the held scale was 0.58 m off
+//    along the road (camera 1, SIFT structure: georef max 0.72 -> 0.23 m).
 // Anchors are associated with the trajectory by time (the VO pose interpolated at the anchor's
 // time, InterpolatePose with max_gap_s); only status ok anchors are used. paper and piecewise need
 // the anchors' orientations (qw..qz).
@@ -64,11 +69,18 @@ GeorefMethod ParseGeorefMethod(const std::string& name);
 // "all" or a comma-separated list of method names.
 std::vector<GeorefMethod> ParseGeorefMethods(const std::string& list);
 
+// How far beyond an end anchor its drift is followed, metres: the reach over which an anchor's
+// fit measured it (`epiloc anchor`'s structure window, 40 m by default, holds the cameras within
+// 20 m of the anchor); beyond, the scale reached there is held.
+inline constexpr double kEndDriftReachM = 20.0;
+
 struct GeorefOptions {
   std::vector<GeorefMethod> methods = {GeorefMethod::kPiecewise};
   double max_gap_s = 1.0;             // VO poses further apart are not interpolated between
   int paper_second_anchor = -1;       // paper: index of the scale anchor among usable ones; -1 last
   double min_anchor_spacing_m = 1.0;  // piecewise: closer anchors are skipped
+  // piecewise: the end anchors' drifts followed this far beyond them (0: their scales held)
+  double end_drift_reach_m = kEndDriftReachM;
 
   // Throws Error naming the invalid field.
   void Check() const;
@@ -82,6 +94,7 @@ struct AnchorPair {
   Eigen::Vector3d centre_in_enu = Eigen::Vector3d::Zero();
   std::optional<Eigen::Quaterniond> enu_from_cam;  // in the origin's ENU axes
   std::optional<double> scale_m_per_unit;          // the anchor's own (Anchor), if any
+  std::optional<double> scale_drift_per_m;         // the anchor's drift (Anchor), if any
 };
 
 // A (piecewise) similarity from the VO frame to ENU: intervals between `times` (one Sim3d per
@@ -103,6 +116,18 @@ struct GeorefTransform {
     double start = 1.0, end = 1.0;
   };
   std::vector<Ramp> ramps;
+  // Piecewise with the anchors' own scales and drifts: beyond the end anchor the VO's scale
+  // drifts as the end anchor's fit found it (relative change per metre of road, from the
+  // anchor's time onwards), up to `reach_m` from the anchor and held beyond; the VO's step from
+  // the anchor is taken as straight (the chord), so the scale applied at a pose is the one at its
+  // distance from the anchor.
+  struct EndDrift {
+    Eigen::Vector3d vo_anchor = Eigen::Vector3d::Zero();   // the end anchor's VO centre
+    Eigen::Vector3d enu_anchor = Eigen::Vector3d::Zero();  // and its centre
+    double per_m = 0.0;
+    double reach_m = 0.0;
+  };
+  std::optional<EndDrift> before_drift, after_drift;
 
   // ENU pose (enu_from_cam, centre in ENU) of a VO pose at time t, and the scale used there
   // (metres per VO unit).
@@ -113,8 +138,11 @@ struct GeorefTransform {
 // anchors, missing orientation, collinear anchors, a scale that is not positive).
 GeorefTransform PaperTransform(const std::vector<AnchorPair>& anchors, int second_anchor = -1);
 GeorefTransform Sim3Transform(const std::vector<AnchorPair>& anchors);
+// Piecewise: the drive's ends follow the end anchors' drifts up to `end_drift_reach_m` from them
+// (GeorefTransform::EndDrift; 0: the end anchors' scales held).
 GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
-                                   double min_anchor_spacing_m = 1.0);
+                                   double min_anchor_spacing_m = 1.0,
+                                   double end_drift_reach_m = kEndDriftReachM);
 
 struct GeorefMethodSummary {
   GeorefMethod method = GeorefMethod::kPiecewise;
