@@ -50,9 +50,11 @@ int RunGeoref(int argc, char** argv) {
   app.add_option("--min-anchor-spacing-m", options.min_anchor_spacing_m,
                  "piecewise: anchors closer than this to the previous one are skipped")
       ->capture_default_str();
-  app.add_option("--end-drift-reach-m", options.end_drift_reach_m,
-                 "piecewise: beyond the end anchors the VO's scale drifts as their fits found "
-                 "(column scale_drift_per_m) for this many metres, then is held (0: held)")
+  app.add_option(
+         "--end-drift-reach-m", options.end_drift_reach_m,
+         "piecewise: beyond the end anchors the VO's scale drifts as their fits found "
+         "(column scale_drift_per_m) for this many metres, then is held (0: held; the anchors' "
+         "window is 40 m: 20 follows a drift as far as it was measured)")
       ->capture_default_str();
   app.add_option("--anchor-method", anchor_method, "Method of the anchor rows in --anchors")
       ->capture_default_str();

@@ -426,9 +426,9 @@ TEST(Georef, PiecewiseTakesTheAnchorsOwnScalesInsideAndBeyondThem) {
   EXPECT_NE(some.ramps[5].start, 1.0);
 }
 
-// Anchors that also carry the VO's scale drift their fit found (structure anchors): beyond the end
-// anchors the trajectory goes on with the scale drifting as it did there, for the reach over
-// which an anchor's fit measured it, and held beyond; another trajectory's drift is not taken.
+// Anchors that also carry the VO's scale drift their fit found (structure anchors), with a reach
+// given (off by default): beyond the end anchors the trajectory goes on with the scale drifting as
+// it did there for the reach, and held beyond; another trajectory's drift is not taken.
 TEST(Georef, PiecewiseFollowsTheEndAnchorsDriftBeyondThem) {
   const int frames = 241;
   // The scale falls by a third over the drive (a monocular VO's drift of 1.4-2 % per 10 m).
@@ -466,10 +466,12 @@ TEST(Georef, PiecewiseFollowsTheEndAnchorsDriftBeyondThem) {
     return b;
   };
   const GeorefTransform held = PiecewiseTransform(anchors(1.0, false));
-  const GeorefTransform drifting = PiecewiseTransform(anchors(1.0, true));
+  // Off by default; followed for 20 m (half the anchors' default window), and for ever.
+  EXPECT_FALSE(PiecewiseTransform(anchors(1.0, true)).after_drift.has_value());
+  const GeorefTransform drifting = PiecewiseTransform(anchors(1.0, true), 1.0, 20.0);
   const GeorefTransform unbounded = PiecewiseTransform(anchors(1.0, true), 1.0, 1000.0);
   const GeorefTransform off = PiecewiseTransform(anchors(1.0, true), 1.0, 0.0);
-  const GeorefTransform other = PiecewiseTransform(anchors(3.0, true));
+  const GeorefTransform other = PiecewiseTransform(anchors(3.0, true), 1.0, 20.0);
   EXPECT_FALSE(held.after_drift.has_value());
   ASSERT_TRUE(drifting.before_drift.has_value());
   ASSERT_TRUE(drifting.after_drift.has_value());

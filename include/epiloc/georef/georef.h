@@ -36,12 +36,15 @@
 //    scale to the anchors' mean scale), else the end interval's: an interval's chord gives its
 //    mean scale and the mean heading of its two anchors' positions, and a drifting VO's scale at
 //    the drive's end is not the last interval's mean (shared KITTI drive, VO scale 7 % lower at
-//    the end than over the last interval: 0.70 m off after 15 m, against 0.16 m). Where the end
-//    anchor also carries the VO's scale drift its fit found (structure anchors' column
-//    scale_drift_per_m; this trajectory's scales only), the scale goes on drifting so from it
-//    for `end_drift_reach_m` and is held beyond (GeorefTransform::EndDrift): the KITTI drive's
-//    VO falls 2-3 % per 10 m, and 19 m past the last ok anchor the held scale was 0.58 m off
-//    along the road (camera 1, SIFT structure: georef max 0.72 -> 0.23 m).
+//    the end than over the last interval: 0.70 m off after 15 m, against 0.16 m). Optionally
+//    (`end_drift_reach_m` > 0), where the end anchor also carries the VO's scale drift its fit
+//    found (structure anchors' column scale_drift_per_m; this trajectory's scales only), the
+//    scale goes on drifting so from it for that many metres and is held beyond
+//    (GeorefTransform::EndDrift). Off by default: an anchor's drift is a line over its window,
+//    not the drift at the drive's end. On the shared KITTI drive (VO falling 1.4-3.2 % per
+//    10 m, flatter at both ends) with 20 m it helped where the ok anchors ended 19 m from the
+//    drive's end (0.72 -> 0.23 m) and hurt where they end 10 m from it (7 of 8 runs of both
+//    cameras: 0.14-0.27 -> 0.25-0.39 m).
 // Anchors are associated with the trajectory by time (the VO pose interpolated at the anchor's
 // time, InterpolatePose with max_gap_s); only status ok anchors are used. paper and piecewise need
 // the anchors' orientations (qw..qz).
@@ -69,18 +72,15 @@ GeorefMethod ParseGeorefMethod(const std::string& name);
 // "all" or a comma-separated list of method names.
 std::vector<GeorefMethod> ParseGeorefMethods(const std::string& list);
 
-// How far beyond an end anchor its drift is followed, metres: the reach over which an anchor's
-// fit measured it (`epiloc anchor`'s structure window, 40 m by default, holds the cameras within
-// 20 m of the anchor); beyond, the scale reached there is held.
-inline constexpr double kEndDriftReachM = 20.0;
-
 struct GeorefOptions {
   std::vector<GeorefMethod> methods = {GeorefMethod::kPiecewise};
   double max_gap_s = 1.0;             // VO poses further apart are not interpolated between
   int paper_second_anchor = -1;       // paper: index of the scale anchor among usable ones; -1 last
   double min_anchor_spacing_m = 1.0;  // piecewise: closer anchors are skipped
-  // piecewise: the end anchors' drifts followed this far beyond them (0: their scales held)
-  double end_drift_reach_m = kEndDriftReachM;
+  // piecewise: the end anchors' drifts followed this far beyond them, metres (0: their scales
+  // held). An anchor's fit measured its drift over its window (`epiloc anchor`'s structure
+  // window, 40 m by default, holds the cameras within 20 m of it).
+  double end_drift_reach_m = 0.0;
 
   // Throws Error naming the invalid field.
   void Check() const;
@@ -142,7 +142,7 @@ GeorefTransform Sim3Transform(const std::vector<AnchorPair>& anchors);
 // (GeorefTransform::EndDrift; 0: the end anchors' scales held).
 GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
                                    double min_anchor_spacing_m = 1.0,
-                                   double end_drift_reach_m = kEndDriftReachM);
+                                   double end_drift_reach_m = 0.0);
 
 struct GeorefMethodSummary {
   GeorefMethod method = GeorefMethod::kPiecewise;
