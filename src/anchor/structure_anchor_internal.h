@@ -56,7 +56,8 @@ std::optional<double> LeastSquaresSlope(const std::vector<Eigen::Vector2d>& xy,
 
 // The drift pass (ScaleDriftModel::kAcrossAnchors) over `out` (one result per run.indices): the
 // VO's scale drift at each posed anchor from the scales of the anchors around it, then each
-// registered again from its own fit with its structure warped by that drift.
+// registered again from its own fit with its structure warped by that drift; in two rounds, the
+// second's drift from the first round's scales, registered from the fits of `out`.
 void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out);
 
 // The passes after the drift pass, in this order (structure_passes.cc): the consensus pass

@@ -156,7 +156,8 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   // with the drift from the neighbours' scales only 13 of 16 ok, 0.115 / 0.238 m, 0.20 / 0.43 deg;
   // rotation median 0.19 deg, max 0.43 deg; 0.6-1.6 s per anchor (2 threads, the machine
   // otherwise busy or not); with the drift kept only where it fits the map better (sixth
-  // session) 14 of 16 ok, 0.125 / 0.238 m, 0.17 / 0.43 deg. The targets, but for the ok share
+  // session) 14 of 16 ok, 0.125 / 0.238 m, 0.17 / 0.43 deg; with the drift pass in two rounds
+  // (2026-12-05) 14 of 16 ok, 0.124 / 0.220 m, 0.21 / 0.43 deg. The targets, but for the ok share
   // (90 %).
   ASSERT_GE(lidar.horizontal.size() * 4, lidar.anchors * 3);
   EXPECT_GE(lidar.ok * 8, static_cast<int>(lidar.anchors) * 5);
@@ -171,7 +172,11 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   // rejected by the neighbours' check; median 0.256 m). With the drift kept only where it fits
   // the map better, and none where the line asks for more than a usable VO drifts
   // (structure_passes.cc), measured 2026-11-28 (sixth session): 6 of 16 ok, every ok anchor
-  // within 0.24 m, median 0.173 m, max 0.376 m, rotation max 0.47 deg. Asserted with a margin.
+  // within 0.24 m, median 0.173 m, max 0.376 m, rotation max 0.47 deg. With the drift pass in two
+  // rounds, the second's drift from the first round's scales (2026-12-05): 11 of 16 ok, every ok
+  // anchor within 0.13 m, median 0.106 m, max 0.344 m (frame 0, rejected), rotation max 0.57 deg;
+  // over four heading seeds through the CLI 9-11 ok, within 0.133 m, median 0.099-0.100 m, max
+  // 0.35-0.40 m. Asserted with a margin.
   KittiImportOptions cam0_noisy = cam1_all;
   cam0_noisy.camera = 0;
   cam0_noisy.seed = 2;
@@ -186,10 +191,10 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
              VoStructure::FromResult(RunVisualOdometry(cam0_lidar_drive, VoOptions())), options,
              "camera 0, LiDAR-consistent track");
   ASSERT_GE(other.horizontal.size() * 4, other.anchors * 3);
-  EXPECT_GE(other.ok * 4, static_cast<int>(other.anchors));
-  EXPECT_LE(other.ok_max_horizontal, 0.3);
-  EXPECT_LE(Median(other.horizontal), 0.25);
-  EXPECT_LE(*std::max_element(other.horizontal.begin(), other.horizontal.end()), 0.6);
+  EXPECT_GE(other.ok * 2, static_cast<int>(other.anchors));
+  EXPECT_LE(other.ok_max_horizontal, 0.2);
+  EXPECT_LE(Median(other.horizontal), 0.15);
+  EXPECT_LE(*std::max_element(other.horizontal.begin(), other.horizontal.end()), 0.5);
 }
 
 }  // namespace

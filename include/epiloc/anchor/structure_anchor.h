@@ -25,8 +25,10 @@
 //     nearly level; else `rejected` with the reason.
 //  5. Drift pass (ScaleDriftModel::kAcrossAnchors, default): the VO's scale drift at f from the
 //     scales of the other anchors around it, then f registered again from its own fit with the
-//     structure warped by that drift (StructureDrift); then the consensus pass, the rotation
-//     consensus (rotation_consensus) and the neighbours' check of the ok anchors.
+//     structure warped by that drift (StructureDrift); twice, the second round's drift from the
+//     first round's scales (each then the scale at its camera), registered from the first
+//     pass's fits; then the consensus pass, the rotation consensus (rotation_consensus) and the
+//     neighbours' check of the ok anchors.
 // Frames: map = the cloud's local ENU (metres); VO world = the trajectory's frame (its units).
 // Accuracy (README): on the shared KITTI drive against its OXTS camera pose about 0.57 m and
 // 0.74-0.95 degrees (median), limited by that track, which is 3.7 % short of its own LiDAR and
@@ -65,7 +67,8 @@ enum class ScaleDriftModel {
   kNone,           // one similarity per window
   kAcrossAnchors,  // the drift from the scales of the other anchors around (within half the
                    // window), then each anchor registered again with it from its own fit (no
-                   // search, the levels that free the scale)
+                   // search, the levels that free the scale); in two rounds (the second's drift
+                   // from the first round's scales)
   kPerWindow,      // estimated in each window's registration with the similarity
 };
 
