@@ -196,6 +196,55 @@ std::vector<double> DriftAcrossAnchors(const std::vector<Posed>& posed,
   return drift;
 }
 
+// Each posed anchor registered again from its own fit, over the schedule's levels that free the
+// scale, with the drift `drift` gives it (DriftAcrossAnchors over `posed`), and again without a
+// drift; the drift is kept where it puts at least as many of the structure's points on the map's
+// surfaces (within the finest distance) as the fit without it. The drift is a line through the
+// neighbours' scales: where the VO's scale bends within a window (KITTI camera 0 on the LiDAR's
+// path: flat over the first 15 m, then falling 3-4 % per 10 m), the line extrapolated to the
+// drive's start warped the structure 5 % per 10 m, and the cameras, 20-50 m from much of their
+// structure, landed 1.3-1.7 m behind along the road (scale 12-13 % high); warped so, the
+// structure fits the map worse than unwarped (1416 against 1461 points on it at frame 0), while
+// a drift that holds fits it better (camera 1: all but the last two of 16 anchors).
+void RegisterWithDrift(const DriveAnchoring& run,
+                       const std::vector<Posed>& posed,
+                       const std::vector<double>& drift,
+                       AnchorDriveResult* out) {
+  const VoStructure& vo = run.vo;
+  // The levels that free the scale: the drift changes the scale at the camera.
+  const std::vector<double> levels = ScaleLevels(run.options.registration);
+  std::vector<std::pair<size_t, Restart>> with_drift, without_drift;
+  for (size_t i = 0; i < posed.size(); ++i) {
+    const size_t k = posed[i].k;
+    Restart restart;
+    restart.sim = ImpliedSimilarity(out->frames[k],
+                                    vo.poses[static_cast<size_t>(posed[i].pose)].world_from_cam);
+    restart.levels_m = levels;
+    without_drift.push_back({k, restart});
+    restart.drift_per_m = drift[i];
+    with_drift.push_back({k, restart});
+  }
+  std::vector<double> first_seconds(out->frames.size());
+  for (size_t k = 0; k < out->frames.size(); ++k) first_seconds[k] = out->frames[k].seconds;
+  AnchorDriveResult without = *out;
+  RegisterAgain(run, with_drift, false, out);
+  RegisterAgain(run, without_drift, false, &without);
+  for (size_t i = 0; i < posed.size(); ++i) {
+    const size_t k = posed[i].k;
+    AnchorResult& a = out->frames[k];
+    const AnchorResult& b = without.frames[k];
+    if (drift[i] == 0.0 || !b.has_pose || a.num_inliers >= b.num_inliers) continue;
+    const std::string note = fmt::format(
+        "registered without the drift its neighbours give ({:+.2f} % per 10 m: {} of its points on "
+        "the map against {})",
+        1000.0 * drift[i], a.num_inliers, b.num_inliers);
+    const double seconds = a.seconds + b.seconds - first_seconds[k];
+    a = b;
+    a.seconds = seconds;
+    a.message = a.message.empty() ? note : a.message + "; " + note;
+  }
+}
+
 }  // namespace
 
 // The consensus pass (StructureAnchorOptions::consensus_radius_m): each posed anchor's camera is
@@ -267,59 +316,6 @@ void GateByNeighbours(const DriveAnchoring& run, AnchorDriveResult* out) {
     a.message = a.message.empty() ? note : a.message + "; " + note;
   }
 }
-
-namespace {
-
-// Each posed anchor registered again from its own fit, over the schedule's levels that free the
-// scale, with the drift `drift` gives it (DriftAcrossAnchors over `posed`), and again without a
-// drift; the drift is kept where it puts at least as many of the structure's points on the map's
-// surfaces (within the finest distance) as the fit without it. The drift is a line through the
-// neighbours' scales: where the VO's scale bends within a window (KITTI camera 0 on the LiDAR's
-// path: flat over the first 15 m, then falling 3-4 % per 10 m), the line extrapolated to the
-// drive's start warped the structure 5 % per 10 m, and the cameras, 20-50 m from much of their
-// structure, landed 1.3-1.7 m behind along the road (scale 12-13 % high); warped so, the
-// structure fits the map worse than unwarped (1416 against 1461 points on it at frame 0), while
-// a drift that holds fits it better (camera 1: all but the last two of 16 anchors).
-void RegisterWithDrift(const DriveAnchoring& run,
-                       const std::vector<Posed>& posed,
-                       const std::vector<double>& drift,
-                       AnchorDriveResult* out) {
-  const VoStructure& vo = run.vo;
-  // The levels that free the scale: the drift changes the scale at the camera.
-  const std::vector<double> levels = ScaleLevels(run.options.registration);
-  std::vector<std::pair<size_t, Restart>> with_drift, without_drift;
-  for (size_t i = 0; i < posed.size(); ++i) {
-    const size_t k = posed[i].k;
-    Restart restart;
-    restart.sim = ImpliedSimilarity(out->frames[k],
-                                    vo.poses[static_cast<size_t>(posed[i].pose)].world_from_cam);
-    restart.levels_m = levels;
-    without_drift.push_back({k, restart});
-    restart.drift_per_m = drift[i];
-    with_drift.push_back({k, restart});
-  }
-  std::vector<double> first_seconds(out->frames.size());
-  for (size_t k = 0; k < out->frames.size(); ++k) first_seconds[k] = out->frames[k].seconds;
-  AnchorDriveResult without = *out;
-  RegisterAgain(run, with_drift, false, out);
-  RegisterAgain(run, without_drift, false, &without);
-  for (size_t i = 0; i < posed.size(); ++i) {
-    const size_t k = posed[i].k;
-    AnchorResult& a = out->frames[k];
-    const AnchorResult& b = without.frames[k];
-    if (drift[i] == 0.0 || !b.has_pose || a.num_inliers >= b.num_inliers) continue;
-    const std::string note = fmt::format(
-        "registered without the drift its neighbours give ({:+.2f} % per 10 m: {} of its points on "
-        "the map against {})",
-        1000.0 * drift[i], a.num_inliers, b.num_inliers);
-    const double seconds = a.seconds + b.seconds - first_seconds[k];
-    a = b;
-    a.seconds = seconds;
-    a.message = a.message.empty() ? note : a.message + "; " + note;
-  }
-}
-
-}  // namespace
 
 // Two rounds. The first pass's scales are each window's scale averaged over its structure, and
 // where the drift bends (or at a drive's end, where a window holds cameras on one side only) a

@@ -58,7 +58,7 @@ Rigid3d GeorefTransform::Map(double timestamp_s, const Rigid3d& vo_from_cam, dou
     const double held =
         std::abs(x) <= reach ? 0.5 * x * x : reach * std::abs(x) - 0.5 * reach * reach;
     const double mean = x == 0.0 ? 1.0 : 1.0 + drift->per_m * held / x;
-    centre = drift->enu_anchor + sim.scale * mean * (sim.rotation * d);
+    centre = sim * drift->vo_anchor + sim.scale * mean * (sim.rotation * d);
     if (scale) *scale = sim.scale * (1.0 + drift->per_m * std::clamp(x, -reach, reach));
   }
   if (!ramps.empty() && !first && !last) {
@@ -225,8 +225,8 @@ GeorefTransform PiecewiseTransform(const std::vector<AnchorPair>& anchors,
         end_drift_reach_m <= 0.0) {
       return std::nullopt;
     }
-    return GeorefTransform::EndDrift{a.vo_from_cam.translation, a.centre_in_enu,
-                                     *a.scale_drift_per_m, end_drift_reach_m};
+    return GeorefTransform::EndDrift{a.vo_from_cam.translation, *a.scale_drift_per_m,
+                                     end_drift_reach_m};
   };
   transform.before_drift = end_drift(*kept.front());
   transform.after_drift = end_drift(*kept.back());

@@ -122,8 +122,7 @@ struct GeorefTransform {
   // the anchor is taken as straight (the chord), so the scale applied at a pose is the one at its
   // distance from the anchor.
   struct EndDrift {
-    Eigen::Vector3d vo_anchor = Eigen::Vector3d::Zero();   // the end anchor's VO centre
-    Eigen::Vector3d enu_anchor = Eigen::Vector3d::Zero();  // and its centre
+    Eigen::Vector3d vo_anchor = Eigen::Vector3d::Zero();  // the end anchor's VO centre
     double per_m = 0.0;
     double reach_m = 0.0;
   };
