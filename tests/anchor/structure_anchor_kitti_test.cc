@@ -157,10 +157,11 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   // rotation median 0.19 deg, max 0.43 deg; 0.6-1.6 s per anchor (2 threads, the machine
   // otherwise busy or not); with the drift kept only where it fits the map better (sixth
   // session) 14 of 16 ok, 0.125 / 0.238 m, 0.17 / 0.43 deg; with the drift pass in two rounds
-  // (2026-12-05) 14 of 16 ok, 0.124 / 0.220 m, 0.21 / 0.43 deg. The targets, but for the ok share
-  // (90 %).
+  // (2026-12-05) 14 of 16 ok, 0.124 / 0.220 m, 0.21 / 0.43 deg; with the ok claim at the
+  // profile's resolution (max_along_sigma_m 0.15: 0.3 m along at 2 sigma, 2026-12-06) 16 of 16.
+  // The targets.
   ASSERT_GE(lidar.horizontal.size() * 4, lidar.anchors * 3);
-  EXPECT_GE(lidar.ok * 8, static_cast<int>(lidar.anchors) * 5);
+  EXPECT_GE(lidar.ok * 8, static_cast<int>(lidar.anchors) * 7);
   EXPECT_LE(Median(lidar.horizontal), 0.2);
   EXPECT_LE(*std::max_element(lidar.horizontal.begin(), lidar.horizontal.end()), 0.5);
   EXPECT_LE(Median(lidar.rotation), 0.5);
@@ -176,7 +177,8 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
   // rounds, the second's drift from the first round's scales (2026-12-05): 11 of 16 ok, every ok
   // anchor within 0.13 m, median 0.106 m, max 0.344 m (frame 0, rejected), rotation max 0.57 deg;
   // over four heading seeds through the CLI 9-11 ok, within 0.133 m, median 0.099-0.100 m, max
-  // 0.35-0.40 m. Asserted with a margin.
+  // 0.35-0.40 m. With the ok claim at the profile's resolution (0.3 m along, 2026-12-06): 15 of
+  // 16 ok, every ok anchor within 0.30 m (frame 20, 0.28 m along). Asserted with a margin.
   KittiImportOptions cam0_noisy = cam1_all;
   cam0_noisy.camera = 0;
   cam0_noisy.seed = 2;
@@ -191,8 +193,8 @@ TEST(StructureAnchorKitti, AnchorsCameraOneFromItsOwnStructure) {
              VoStructure::FromResult(RunVisualOdometry(cam0_lidar_drive, VoOptions())), options,
              "camera 0, LiDAR-consistent track");
   ASSERT_GE(other.horizontal.size() * 4, other.anchors * 3);
-  EXPECT_GE(other.ok * 2, static_cast<int>(other.anchors));
-  EXPECT_LE(other.ok_max_horizontal, 0.2);
+  EXPECT_GE(other.ok * 4, static_cast<int>(other.anchors) * 3);
+  EXPECT_LE(other.ok_max_horizontal, 0.4);
   EXPECT_LE(Median(other.horizontal), 0.15);
   EXPECT_LE(*std::max_element(other.horizontal.begin(), other.horizontal.end()), 0.5);
 }
