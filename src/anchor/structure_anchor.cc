@@ -641,6 +641,7 @@ AnchorDriveResult AnchorByStructure(const AnchorInputs& inputs,
     if (options.consensus_radius_m > 0.0) structure_internal::ApplyConsensus(run, r);
     if (options.rotation_consensus) structure_internal::ApplyRotationConsensus(run, r);
     if (options.consensus_radius_m > 0.0) structure_internal::GateByNeighbours(run, r);
+    if (options.consensus_placement) structure_internal::PlaceByConsensus(run, r);
   };
   const structure_internal::DriveAnchoring run{drive, indices,   pose_of, timed,
                                                load,  map_frame, options};

@@ -67,6 +67,8 @@ void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out);
 void ApplyConsensus(const DriveAnchoring& run, AnchorDriveResult* out);
 void ApplyRotationConsensus(const DriveAnchoring& run, AnchorDriveResult* out);
 void GateByNeighbours(const DriveAnchoring& run, AnchorDriveResult* out);
+// Last: the consensus placement of the ok anchors (StructureAnchorOptions::consensus_placement).
+void PlaceByConsensus(const DriveAnchoring& run, AnchorDriveResult* out);
 
 }  // namespace structure_internal
 }  // namespace epiloc

@@ -317,6 +317,28 @@ void GateByNeighbours(const DriveAnchoring& run, AnchorDriveResult* out) {
   }
 }
 
+// Each ok anchor moved horizontally to the median of its ok neighbours' placements (itself
+// included; StructureAnchorOptions::consensus_placement). Last: the flags are the anchors' own.
+void PlaceByConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
+  std::vector<Posed> ok;
+  for (const Posed& p : PosedAnchors(run.indices, run.pose_of, *out)) {
+    if (out->frames[p.k].status == AnchorStatus::kOk) ok.push_back(p);
+  }
+  const std::vector<std::optional<Eigen::Vector2d>> centres =
+      ConsensusCentres(Place(ok, run.vo, *out), run.options.window_m);
+  for (size_t i = 0; i < ok.size(); ++i) {
+    if (!centres[i]) continue;
+    AnchorResult& a = out->frames[ok[i].k];
+    Eigen::Vector3d& centre = a.map_from_cam.translation;
+    a.consensus_move_m = (*centres[i] - centre.head<2>()).norm();
+    centre.head<2>() = *centres[i];
+    a.position = run.map_frame.ToGeodetic(centre);
+    a.enu_from_cam = Eigen::Quaterniond(run.map_frame.EnuFromLocalEnu(a.position).transpose() *
+                                        a.map_from_cam.rotation.toRotationMatrix())
+                         .normalized();
+  }
+}
+
 // Two rounds. The first pass's scales are each window's scale averaged over its structure, and
 // where the drift bends (or at a drive's end, where a window holds cameras on one side only) a
 // line through them is not the drift at the anchor (KITTI camera 0: 0 and -4.9 % per 10 m where
@@ -399,6 +421,18 @@ std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<Place
     }
   }
   return off;
+}
+
+std::vector<std::optional<Eigen::Vector2d>> ConsensusCentres(
+    const std::vector<PlacedAnchor>& anchors, double window_m) {
+  std::vector<std::optional<Eigen::Vector2d>> centres(anchors.size());
+  for (size_t i = 0; i < anchors.size(); ++i) {
+    if (const std::optional<structure_internal::Placements> p =
+            structure_internal::PlaceByNeighbours(anchors, i, true, window_m)) {
+      centres[i] = p->median;
+    }
+  }
+  return centres;
 }
 
 std::vector<Eigen::Quaterniond> ConsensusRotations(const std::vector<PlacedAnchor>& anchors,

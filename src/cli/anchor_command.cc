@@ -159,6 +159,7 @@ ResultTable ToResultTable(const AnchorDriveResult& anchors,
                          "along_sigma_m",
                          "structure_points",
                          "scale_drift_per_m",
+                         "consensus_move_m",
                          "message"};
   for (const AnchorResult& a : anchors.frames) {
     ResultRow row;
@@ -192,6 +193,7 @@ ResultTable ToResultTable(const AnchorDriveResult& anchors,
                  Fixed(a.along_sigma_m, 4),
                  std::to_string(a.structure_points),
                  Fixed(a.scale_drift_per_m, 6),
+                 Fixed(a.consensus_move_m, 4),
                  a.message};
     table.rows.push_back(std::move(row));
   }
@@ -311,6 +313,10 @@ int RunAnchor(int argc, char** argv) {
   app.add_option("--consensus-radius", structure.consensus_radius_m,
                  "structure: anchors farther than this from their neighbours' agreed placement "
                  "are registered again from it, metres (0: off)")
+      ->capture_default_str();
+  app.add_option("--consensus-placement", structure.consensus_placement,
+                 "structure: each ok anchor moved to the median of its ok neighbours' placements "
+                 "of its camera, itself included (true/false; the move in consensus_move_m)")
       ->capture_default_str();
   app.add_option("--rotation-consensus", structure.rotation_consensus,
                  "structure: each anchor registered again with the median rotation of the anchors "

@@ -150,6 +150,8 @@ struct AnchorResult {
   int structure_points = 0;               // VO points registered
   double scale_drift_per_m = NAN;         // the VO's scale drift estimated over the window:
                                           // relative change of scale per metre of road
+  double consensus_move_m = NAN;          // structure: horizontal move of the camera to its
+                                          // ok neighbours' median placement (NaN: not moved)
 };
 
 // Anchors one frame. `image`: the frame undistorted into `camera` (grey or BGR); `local_map`: the
