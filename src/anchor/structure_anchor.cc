@@ -145,6 +145,14 @@ Similarity3 Rewarped(const std::vector<Eigen::Vector3d>& points,
 
 namespace structure_internal {
 
+void SetCentre(const EnuFrame& map_frame, const Eigen::Vector3d& centre, AnchorResult* a) {
+  a->map_from_cam.translation = centre;
+  a->position = map_frame.ToGeodetic(centre);
+  a->enu_from_cam = Eigen::Quaterniond(map_frame.EnuFromLocalEnu(a->position).transpose() *
+                                       a->map_from_cam.rotation.toRotationMatrix())
+                        .normalized();
+}
+
 AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* restart) {
   const Drive& drive = run.drive;
   const std::vector<int>& pose_of = run.pose_of;
@@ -445,13 +453,9 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
   const Similarity3& sim = best.map_from_world;
   result.scale_m_per_unit = sim.scale;
   result.has_pose = true;
-  result.map_from_cam =
-      Rigid3d(sim.rotation * world_from_cam.rotation, sim * world_from_cam.translation);
-  const Eigen::Vector3d centre = result.map_from_cam.translation;
-  result.position = map_frame.ToGeodetic(centre);
-  result.enu_from_cam = Eigen::Quaterniond(map_frame.EnuFromLocalEnu(result.position).transpose() *
-                                           result.map_from_cam.rotation.toRotationMatrix())
-                            .normalized();
+  result.map_from_cam.rotation = sim.rotation * world_from_cam.rotation;
+  const Eigen::Vector3d centre = sim * world_from_cam.translation;
+  SetCentre(map_frame, centre, &result);
   result.prior_offset_m = (centre - *gnss_k).head<2>().norm();
   if (const auto g = GroundHeight(local, centre.head<2>(), options.prior)) {
     result.height_above_ground_m = centre.z() - *g;

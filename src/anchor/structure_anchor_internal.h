@@ -41,6 +41,10 @@ struct DriveAnchoring {
   const StructureAnchorOptions& options;
 };
 
+// Puts an anchor's camera centre at `centre` (map frame), with its WGS-84 position and its
+// rotation in the local ENU there.
+void SetCentre(const EnuFrame& map_frame, const Eigen::Vector3d& centre, AnchorResult* a);
+
 // Anchors drive.frames[index]; see the top of structure_anchor.h. With `restart`, from its
 // similarity instead of the GPS seed.
 AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* restart = nullptr);

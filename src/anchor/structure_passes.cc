@@ -329,13 +329,10 @@ void PlaceByConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
   for (size_t i = 0; i < ok.size(); ++i) {
     if (!centres[i]) continue;
     AnchorResult& a = out->frames[ok[i].k];
-    Eigen::Vector3d& centre = a.map_from_cam.translation;
+    Eigen::Vector3d centre = a.map_from_cam.translation;
     a.consensus_move_m = (*centres[i] - centre.head<2>()).norm();
     centre.head<2>() = *centres[i];
-    a.position = run.map_frame.ToGeodetic(centre);
-    a.enu_from_cam = Eigen::Quaterniond(run.map_frame.EnuFromLocalEnu(a.position).transpose() *
-                                        a.map_from_cam.rotation.toRotationMatrix())
-                         .normalized();
+    SetCentre(run.map_frame, centre, &a);
   }
 }
 

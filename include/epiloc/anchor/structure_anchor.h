@@ -27,8 +27,8 @@
 //     scales of the other anchors around it, then f registered again from its own fit with the
 //     structure warped by that drift (StructureDrift); twice, the second round's drift from the
 //     first round's scales (each then the scale at its camera), registered from the first
-//     pass's fits; then the consensus pass, the rotation consensus (rotation_consensus) and the
-//     neighbours' check of the ok anchors.
+//     pass's fits; then the consensus pass, the rotation consensus (rotation_consensus), the
+//     neighbours' check of the ok anchors and their consensus placement (consensus_placement).
 // Frames: map = the cloud's local ENU (metres); VO world = the trajectory's frame (its units).
 // Accuracy (README): on the shared KITTI drive against its OXTS camera pose about 0.57 m and
 // 0.74-0.95 degrees (median), limited by that track, which is 3.7 % short of its own LiDAR and
