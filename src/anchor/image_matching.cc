@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "epiloc/core/error.h"
+#include "epiloc/feature/sift.h"
 
 namespace epiloc {
 namespace {
@@ -145,10 +146,8 @@ ImageFeatures ExtractFeatures(const cv::Mat& grey,
   cv::Mat descriptors;
   detector->detectAndCompute(image, image_mask, keypoints, descriptors);
   if (options.type == FeatureType::kSift) {
-    // OpenCV's SIFT (4.6) doubles the image with pixel centres mapping x_doubled = 2 x + 0.5 but
-    // reports x_doubled / 2: its keypoints are 0.25 px too far right and down (opencv#23123; the
-    // same correction as ExtractSift, feature/sift.cc).
-    for (cv::KeyPoint& k : keypoints) k.pt -= cv::Point2f(0.25f, 0.25f);
+    const float offset = static_cast<float>(kOpenCvSiftOffsetPx);
+    for (cv::KeyPoint& k : keypoints) k.pt += cv::Point2f(offset, offset);
   }
   if (options.scale != 1.0) {
     const float s = static_cast<float>(1.0 / options.scale);

@@ -98,15 +98,14 @@ FeatureSet ExtractSift(const cv::Mat& image, const SiftOptions& options) {
   const int n = static_cast<int>(keypoints.size());
   features.keypoints.resize(n, 4);
   features.descriptors.resize(n, 128);
-  // OpenCV doubles the image with pixel centres mapping x_doubled = 2 x + 0.5, but reports
-  // x_doubled / 2 (4.6: sift.dispatch.cpp, createInitialImage and the keypoint scale 0.5): its
-  // coordinates are 0.25 px too large; kOpenCvShift undoes that. Pixel centres sit at integer
+  // OpenCV's coordinates corrected (kOpenCvSiftOffsetPx); pixel centres sit at integer
   // coordinates in both images, so the downscale maps x -> (x + 0.5) / scale - 0.5.
-  constexpr double kOpenCvShift = -0.25;
   for (int i = 0; i < n; ++i) {
     const cv::KeyPoint& kp = keypoints[order[i]];
-    features.keypoints(i, 0) = static_cast<float>((kp.pt.x + kOpenCvShift + 0.5) / scale - 0.5);
-    features.keypoints(i, 1) = static_cast<float>((kp.pt.y + kOpenCvShift + 0.5) / scale - 0.5);
+    features.keypoints(i, 0) =
+        static_cast<float>((kp.pt.x + kOpenCvSiftOffsetPx + 0.5) / scale - 0.5);
+    features.keypoints(i, 1) =
+        static_cast<float>((kp.pt.y + kOpenCvSiftOffsetPx + 0.5) / scale - 0.5);
     features.keypoints(i, 2) = static_cast<float>(kp.size / scale);
     features.keypoints(i, 3) = static_cast<float>(kp.angle * M_PI / 180.0);
   }

@@ -38,6 +38,12 @@ struct SiftOptions {
 // Throws Error for an empty image or an unsupported pixel type.
 FeatureSet ExtractSift(const cv::Mat& image, const SiftOptions& options);
 
+// OpenCV's SIFT (4.6) doubles the image with pixel centres mapping x_doubled = 2 x + 0.5 but
+// reports x_doubled / 2 (sift.dispatch.cpp: createInitialImage and the keypoint scale 0.5): its
+// keypoint coordinates are 0.25 px too large in x and y (opencv#23123). Added to them, they sit
+// on the image's pixel grid (centres at integers); ExtractSift does so.
+constexpr double kOpenCvSiftOffsetPx = -0.25;
+
 // The smallest keypoint size (diameter, pixels of the input image) ExtractSift can return for a
 // width x height image with these options: OpenCV reports size = 2 * sigma * 2^((layer + offset) /
 // num_octave_layers) per octave above the upsampled one, with layer >= 1 and offset >= -0.5.
