@@ -90,6 +90,8 @@ void StructureAnchorOptions::Check() const {
   prior.Check();
   registration.Check();
   EPILOC_CHECK(std::isfinite(window_m) && window_m > 0, "structure anchor: window_m must be > 0");
+  EPILOC_CHECK(std::isfinite(placement_rotation_radius_m) && placement_rotation_radius_m > 0,
+               "structure anchor: placement_rotation_radius_m must be > 0");
   EPILOC_CHECK(std::isfinite(consensus_radius_m) && consensus_radius_m >= 0,
                "structure anchor: consensus_radius_m must be >= 0");
   EPILOC_CHECK(min_observations >= 2, "structure anchor: min_observations must be >= 2");
@@ -643,9 +645,13 @@ AnchorDriveResult AnchorByStructure(const AnchorInputs& inputs,
       structure_internal::ApplyDriftAcrossAnchors(run, r);
     }
     if (options.consensus_radius_m > 0.0) structure_internal::ApplyConsensus(run, r);
-    if (options.rotation_consensus) structure_internal::ApplyRotationConsensus(run, r);
+    std::vector<std::optional<Eigen::Quaterniond>> orientations;
+    if (options.rotation_consensus) {
+      orientations = structure_internal::ApplyRotationConsensus(run, r);
+    }
     if (options.consensus_radius_m > 0.0) structure_internal::GateByNeighbours(run, r);
     if (options.consensus_placement) structure_internal::PlaceByConsensus(run, r);
+    structure_internal::OrientByConsensus(run, orientations, r);
   };
   const structure_internal::DriveAnchoring run{drive, indices,   pose_of, timed,
                                                load,  map_frame, options};

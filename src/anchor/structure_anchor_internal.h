@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "epiloc/anchor/structure_anchor.h"
 #include "epiloc/cloud/point_cloud.h"
@@ -67,12 +68,20 @@ void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out);
 // The passes after the drift pass, in this order (structure_passes.cc): the consensus pass
 // (StructureAnchorOptions::consensus_radius_m), the rotation consensus
 // (StructureAnchorOptions::rotation_consensus), then the neighbours' check of the ok anchors
-// (also consensus_radius_m).
+// (also consensus_radius_m). The rotation consensus registers each posed anchor again with the
+// consensus over placement_rotation_radius_m held and returns, per result of `out`, the
+// consensus over window_m that turns its camera (nullopt: not posed), for OrientByConsensus.
 void ApplyConsensus(const DriveAnchoring& run, AnchorDriveResult* out);
-void ApplyRotationConsensus(const DriveAnchoring& run, AnchorDriveResult* out);
+std::vector<std::optional<Eigen::Quaterniond>> ApplyRotationConsensus(const DriveAnchoring& run,
+                                                                      AnchorDriveResult* out);
 void GateByNeighbours(const DriveAnchoring& run, AnchorDriveResult* out);
-// Last: the consensus placement of the ok anchors (StructureAnchorOptions::consensus_placement).
+// Then the consensus placement of the ok anchors (StructureAnchorOptions::consensus_placement).
 void PlaceByConsensus(const DriveAnchoring& run, AnchorDriveResult* out);
+// Last: each posed anchor with an orientation (one per result of `out`; empty: none) gets the
+// camera rotation orientation * its VO orientation, its centre kept.
+void OrientByConsensus(const DriveAnchoring& run,
+                       const std::vector<std::optional<Eigen::Quaterniond>>& orientations,
+                       AnchorDriveResult* out);
 
 }  // namespace structure_internal
 }  // namespace epiloc

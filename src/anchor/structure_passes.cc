@@ -10,8 +10,10 @@
 
 #include <spdlog/spdlog.h>
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 
 #include "epiloc/anchor/structure_anchor.h"
+#include "epiloc/core/error.h"
 #include "epiloc/core/parallel.h"
 #include "epiloc/geo/rigid3.h"
 #include "structure_anchor_internal.h"
@@ -363,16 +365,23 @@ void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out) 
 }
 
 // The rotation consensus pass (StructureAnchorOptions::rotation_consensus).
-void ApplyRotationConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
+// The structure is registered with the consensus over the longer radius, the camera turned by
+// the one over the window (StructureAnchorOptions::placement_rotation_radius_m).
+std::vector<std::optional<Eigen::Quaterniond>> ApplyRotationConsensus(const DriveAnchoring& run,
+                                                                      AnchorDriveResult* out) {
   const StructureAnchorOptions& options = run.options;
   const VoStructure& vo = run.vo;
   const std::vector<Posed> posed = PosedAnchors(run.indices, run.pose_of, *out);
   const std::vector<PlacedAnchor> placed = Place(posed, vo, *out);
-  const std::vector<Eigen::Quaterniond> consensus = ConsensusRotations(placed, options.window_m);
+  const std::vector<Eigen::Quaterniond> consensus =
+      ConsensusRotations(placed, options.placement_rotation_radius_m);
+  const std::vector<Eigen::Quaterniond> turning = ConsensusRotations(placed, options.window_m);
+  std::vector<std::optional<Eigen::Quaterniond>> orientations(out->frames.size());
   const std::vector<double> levels = ScaleLevels(options.registration);
   std::vector<std::pair<size_t, Restart>> redo;
   for (size_t i = 0; i < posed.size(); ++i) {
     const size_t k = posed[i].k;
+    orientations[k] = turning[i];
     // The camera stays where its own fit put it; the structure turns about it.
     Restart restart;
     restart.sim = placed[i].map_from_world;
@@ -387,6 +396,23 @@ void ApplyRotationConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
   }
   // The consensus pass's note stays (the fit it started stays in place).
   RegisterAgain(run, redo, false, out);
+  return orientations;
+}
+
+void OrientByConsensus(const DriveAnchoring& run,
+                       const std::vector<std::optional<Eigen::Quaterniond>>& orientations,
+                       AnchorDriveResult* out) {
+  if (orientations.empty()) return;
+  EPILOC_CHECK(orientations.size() == out->frames.size(),
+               "OrientByConsensus: one orientation per result");
+  for (const Posed& p : PosedAnchors(run.indices, run.pose_of, *out)) {
+    if (!orientations[p.k]) continue;
+    AnchorResult& a = out->frames[p.k];
+    a.map_from_cam.rotation =
+        (*orientations[p.k] * run.vo.poses[static_cast<size_t>(p.pose)].world_from_cam.rotation)
+            .normalized();
+    SetCentre(run.map_frame, a.map_from_cam.translation, &a);
+  }
 }
 
 }  // namespace structure_internal

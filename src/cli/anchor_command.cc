@@ -322,6 +322,11 @@ int RunAnchor(int argc, char** argv) {
                  "structure: each anchor registered again with the median rotation of the anchors "
                  "whose windows overlap its own held (true/false)")
       ->capture_default_str();
+  app.add_option("--placement-rotation-radius", structure.placement_rotation_radius_m,
+                 "structure: with --rotation-consensus, the structure is registered with the "
+                 "median rotation of the anchors within this radius (the camera is turned by "
+                 "those within --window), metres")
+      ->capture_default_str();
   app.add_option("--scale-drift", scale_drift,
                  "structure: the VO's scale drift along a window: anchors (from the scales of "
                  "the anchors around, then each registered again with it), window (estimated in "

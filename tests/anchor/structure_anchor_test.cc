@@ -12,6 +12,7 @@
 
 #include "anchor_test_util.h"
 #include "epiloc/cloud/cloud_io.h"
+#include "structure_anchor_internal.h"
 #include "test_util.h"
 
 namespace epiloc {
@@ -683,6 +684,74 @@ TEST(StructureAnchor, ConsensusRotationsTakeTheMedianOfTheOverlappingWindows) {
   EXPECT_LT(angle_deg(c[5], common), 0.2);
 }
 
+// The last pass turns each posed anchor's camera by its orientation consensus composed with its
+// own VO orientation (the structure was registered with the longer radius's rotation): exact
+// rotation, the centre and WGS-84 position kept, the ENU rotation written to match; an anchor
+// without a pose or without an orientation keeps what it has; no orientations: nothing changes.
+TEST(StructureAnchor, OrientByConsensusTurnsTheVoOrientationAndKeepsTheCentre) {
+  const EnuFrame map_frame(Geodetic{49.0, 8.4, 115.0});
+  Drive drive;
+  const std::vector<size_t> indices = {0, 1, 2, 3};
+  const std::vector<int> pose_of = {0, -1, 1, 2};  // drive frame 1 has no VO pose
+  VoStructure vo;
+  for (int i = 0; i < 3; ++i) {
+    StampedPose p;
+    p.timestamp_s = i;
+    p.world_from_cam.rotation =
+        Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * (i + 1), Eigen::Vector3d(1, 2, 3).normalized()));
+    p.world_from_cam.translation = Eigen::Vector3d(0.0, 0.0, 5.0 * i);
+    vo.poses.push_back(p);
+  }
+  const structure_internal::MapLoader load;
+  const StructureAnchorOptions options;
+  const structure_internal::DriveAnchoring run{drive, indices,   pose_of, vo,
+                                               load,  map_frame, options};
+  AnchorDriveResult out;
+  for (int k = 0; k < 4; ++k) {
+    AnchorResult a;
+    a.frame = k;
+    a.has_pose = k != 1;
+    a.map_from_cam.rotation =
+        Eigen::Quaterniond(Eigen::AngleAxisd(-0.2 * k, Eigen::Vector3d::UnitZ()));
+    structure_internal::SetCentre(map_frame, Eigen::Vector3d(300.0 * k, -200.0 * k, 2.0), &a);
+    out.frames.push_back(a);
+  }
+  const AnchorDriveResult before = out;
+  const Eigen::Quaterniond turn(
+      Eigen::AngleAxisd(1.3, Eigen::Vector3d(0.2, -0.1, 1.0).normalized()));
+  structure_internal::OrientByConsensus(run, {}, &out);
+  for (size_t k = 0; k < 4; ++k) {
+    EXPECT_LT(
+        out.frames[k].map_from_cam.rotation.angularDistance(before.frames[k].map_from_cam.rotation),
+        1e-15);
+  }
+  structure_internal::OrientByConsensus(run, {turn, turn, turn, std::nullopt}, &out);
+  for (const size_t k : {size_t{0}, size_t{2}}) {
+    const AnchorResult& a = out.frames[k];
+    const Eigen::Quaterniond expected =
+        turn * vo.poses[static_cast<size_t>(pose_of[k])].world_from_cam.rotation;
+    EXPECT_LT(a.map_from_cam.rotation.angularDistance(expected), 1e-12) << k;
+    EXPECT_LT((a.map_from_cam.translation - before.frames[k].map_from_cam.translation).norm(),
+              1e-12);
+    EXPECT_NEAR(a.position.lat_deg, before.frames[k].position.lat_deg, 1e-12);
+    EXPECT_NEAR(a.position.lon_deg, before.frames[k].position.lon_deg, 1e-12);
+    // ENU at the camera: the map frame's rotation seen from the local ENU there (off by the
+    // meridian convergence 600 m east of the origin).
+    const Eigen::Matrix3d enu =
+        map_frame.EnuFromLocalEnu(a.position).transpose() * expected.toRotationMatrix();
+    EXPECT_LT(a.enu_from_cam.angularDistance(Eigen::Quaterniond(enu)), 1e-12) << k;
+    if (k == 2) EXPECT_GT(a.enu_from_cam.angularDistance(expected), 1e-6);
+  }
+  // No pose (frame 1) and no orientation (frame 3): unchanged.
+  for (const size_t k : {size_t{1}, size_t{3}}) {
+    EXPECT_LT(
+        out.frames[k].map_from_cam.rotation.angularDistance(before.frames[k].map_from_cam.rotation),
+        1e-15);
+    EXPECT_LT(out.frames[k].enu_from_cam.angularDistance(before.frames[k].enu_from_cam), 1e-15);
+  }
+  EXPECT_THROW(structure_internal::OrientByConsensus(run, {turn}, &out), Error);
+}
+
 TEST(StructureAnchor, FramesWithoutVoPoseAreLostAndBadInputThrows) {
   const std::string world = SharedSyntheticWorld();
   VoStructure vo;
@@ -705,6 +774,11 @@ TEST(StructureAnchor, FramesWithoutVoPoseAreLostAndBadInputThrows) {
   StructureAnchorOptions negative_radius;
   negative_radius.consensus_radius_m = -0.1;
   ExpectError([&] { negative_radius.Check(); }, {"consensus_radius_m must be >= 0"});
+  for (const double radius : {0.0, -40.0, std::nan("")}) {
+    StructureAnchorOptions no_placement_radius;
+    no_placement_radius.placement_rotation_radius_m = radius;
+    ExpectError([&] { no_placement_radius.Check(); }, {"placement_rotation_radius_m must be > 0"});
+  }
   // The SIFT structure of a drive that is not there: the error names it.
   ExpectError([&] { TriangulateAlongVo(dir / "missing_drive", vo, BuildDbOptions()); },
               {"missing_drive"});
