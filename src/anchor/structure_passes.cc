@@ -335,6 +335,11 @@ void PlaceByConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
     a.consensus_move_m = (*centres[i] - centre.head<2>()).norm();
     centre.head<2>() = *centres[i];
     SetCentre(run.map_frame, centre, &a);
+    // The prior offset follows the move (the ground under the camera moves by the road's grade
+    // times consensus_move_m, a few millimetres: height_above_ground_m is kept).
+    if (const auto gnss = run.drive.gnss.Interpolate(a.timestamp_s, run.drive.max_gap_s)) {
+      a.prior_offset_m = (centre - run.map_frame.ToEnu(gnss->position)).head<2>().norm();
+    }
   }
 }
 

@@ -334,6 +334,17 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   const Errors e = Compare(result, query, EnuFrame(SynthOrigin()));
   ASSERT_EQ(e.posed, e.total);
   ASSERT_GE(e.total, 40);
+  // The prior offset written is the pose's as written, after the consensus placement moved it.
+  const EnuFrame enu(SynthOrigin());
+  int moved = 0;
+  for (const AnchorResult& a : result.frames) {
+    const auto gnss = query.gnss.Interpolate(a.timestamp_s, query.max_gap_s);
+    ASSERT_TRUE(gnss.has_value());
+    const Eigen::Vector3d offset = enu.ToEnu(a.position) - enu.ToEnu(gnss->position);
+    EXPECT_NEAR(a.prior_offset_m, offset.head<2>().norm(), 1e-6) << a.frame;
+    moved += a.consensus_move_m > 0.001 ? 1 : 0;
+  }
+  EXPECT_GT(moved, 0);
   const double max_h = Max(e.posed_horizontal_m);
   const double max_r = Max(e.posed_rotation_deg);
   PrintPosed("15 Hz query, SIFT structure", e);
