@@ -437,9 +437,11 @@ TEST(PipelineStructure, KittiMapVoAnchorGeorefDatabaseLocalize) {
   // test: 10 of 16 ok, the same georef, online mean 0.038 m. With the neighbours' check along
   // the road (fifth session): 12 of 16 ok within 0.196 m, georef 0.228 m, online mean 0.040 m,
   // max 0.125 m. With the drift from the neighbours' scales only: 13 of 16 ok within 0.238 m,
-  // georef 0.241 m, online mean 0.042 m, max 0.151 m. Asserted with margins; the ok-share
-  // target (90 %) is not reached.
-  EXPECT_GE(chain.ok * 8, static_cast<int>(chain.anchors) * 5);
+  // georef 0.241 m, online mean 0.042 m, max 0.151 m. With the ok claim at the profile's
+  // resolution, the consensus placement and the structure registered at the 80 m rotation
+  // consensus (2026-12-06): 16 of 16 ok within 0.205 m, georef 0.205 m, online mean 0.035 m, max
+  // 0.178 m. The targets asserted, the positions with margins.
+  EXPECT_GE(chain.ok * 10, static_cast<int>(chain.anchors) * 9);
   EXPECT_LE(chain.anchors_max, 0.3);
   EXPECT_LE(chain.piecewise_max, 0.3);
   EXPECT_GE(chain.online.evaluated() * 10, static_cast<int64_t>(LoadDrive(cam0).frames.size()) * 9);
