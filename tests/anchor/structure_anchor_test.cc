@@ -751,7 +751,9 @@ TEST(StructureAnchor, OrientByConsensusTurnsTheVoOrientationAndKeepsTheCentre) {
     const Eigen::Matrix3d enu =
         map_frame.EnuFromLocalEnu(a.position).transpose() * expected.toRotationMatrix();
     EXPECT_LT(a.enu_from_cam.angularDistance(Eigen::Quaterniond(enu)), 1e-12) << k;
-    if (k == 2) EXPECT_GT(a.enu_from_cam.angularDistance(expected), 1e-6);
+    if (k == 2) {
+      EXPECT_GT(a.enu_from_cam.angularDistance(expected), 1e-6);
+    }
   }
   // No pose (frame 1) and no orientation (frame 3): unchanged.
   for (const size_t k : {size_t{1}, size_t{3}}) {
