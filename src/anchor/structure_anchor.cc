@@ -155,6 +155,12 @@ void SetCentre(const EnuFrame& map_frame, const Eigen::Vector3d& centre, AnchorR
                         .normalized();
 }
 
+std::optional<Eigen::Vector3d> GnssInMap(const DriveAnchoring& run, double t) {
+  const auto s = run.drive.gnss.Interpolate(t, run.drive.max_gap_s);
+  if (!s) return std::nullopt;
+  return run.map_frame.ToEnu(s->position);
+}
+
 AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* restart) {
   const Drive& drive = run.drive;
   const std::vector<int>& pose_of = run.pose_of;
@@ -179,11 +185,7 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
     result.message = "no VO pose at the frame";
     return finish(result);
   }
-  const auto gnss_at = [&](double t) -> std::optional<Eigen::Vector3d> {
-    const auto s = drive.gnss.Interpolate(t, drive.max_gap_s);
-    if (!s) return std::nullopt;
-    return map_frame.ToEnu(s->position);
-  };
+  const auto gnss_at = [&](double t) { return GnssInMap(run, t); };
   const auto gnss_k = gnss_at(record.timestamp_s);
   if (!gnss_k) {
     result.status = AnchorStatus::kNoPrior;

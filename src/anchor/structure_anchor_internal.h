@@ -46,6 +46,9 @@ struct DriveAnchoring {
 // rotation in the local ENU there.
 void SetCentre(const EnuFrame& map_frame, const Eigen::Vector3d& centre, AnchorResult* a);
 
+// The drive's GNSS position at time `t` in the map frame; none beyond the drive's max_gap_s.
+std::optional<Eigen::Vector3d> GnssInMap(const DriveAnchoring& run, double t);
+
 // Anchors drive.frames[index]; see the top of structure_anchor.h. With `restart`, from its
 // similarity instead of the GPS seed.
 AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* restart = nullptr);

@@ -337,8 +337,8 @@ void PlaceByConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
     SetCentre(run.map_frame, centre, &a);
     // The prior offset follows the move (the ground under the camera moves by the road's grade
     // times consensus_move_m, a few millimetres: height_above_ground_m is kept).
-    if (const auto gnss = run.drive.gnss.Interpolate(a.timestamp_s, run.drive.max_gap_s)) {
-      a.prior_offset_m = (centre - run.map_frame.ToEnu(gnss->position)).head<2>().norm();
+    if (const auto gnss = GnssInMap(run, a.timestamp_s)) {
+      a.prior_offset_m = (centre - *gnss).head<2>().norm();
     }
   }
 }
@@ -378,21 +378,21 @@ std::vector<std::optional<Eigen::Quaterniond>> ApplyRotationConsensus(const Driv
   const VoStructure& vo = run.vo;
   const std::vector<Posed> posed = PosedAnchors(run.indices, run.pose_of, *out);
   const std::vector<PlacedAnchor> placed = Place(posed, vo, *out);
-  const std::vector<Eigen::Quaterniond> consensus =
+  const std::vector<Eigen::Quaterniond> placing =
       ConsensusRotations(placed, options.placement_rotation_radius_m);
-  const std::vector<Eigen::Quaterniond> turning = ConsensusRotations(placed, options.window_m);
+  const std::vector<Eigen::Quaterniond> orienting = ConsensusRotations(placed, options.window_m);
   std::vector<std::optional<Eigen::Quaterniond>> orientations(out->frames.size());
   const std::vector<double> levels = ScaleLevels(options.registration);
   std::vector<std::pair<size_t, Restart>> redo;
   for (size_t i = 0; i < posed.size(); ++i) {
     const size_t k = posed[i].k;
-    orientations[k] = turning[i];
+    orientations[k] = orienting[i];
     // The camera stays where its own fit put it; the structure turns about it.
     Restart restart;
     restart.sim = placed[i].map_from_world;
-    restart.sim.rotation = consensus[i];
+    restart.sim.rotation = placing[i];
     restart.sim.translation =
-        placed[i].map_centre - restart.sim.scale * (consensus[i] * placed[i].vo_centre);
+        placed[i].map_centre - restart.sim.scale * (placing[i] * placed[i].vo_centre);
     const double drift = out->frames[k].scale_drift_per_m;
     restart.drift_per_m = std::isfinite(drift) ? drift : 0.0;
     restart.levels_m = levels;
