@@ -541,6 +541,45 @@ double MedianAlongSigma(const AnchorDriveResult& result) {
   return sigmas[sigmas.size() / 2];
 }
 
+std::optional<VoScaleTrend> ScaleTrendOfAnchors(const AnchorDriveResult& result) {
+  constexpr size_t kMinAnchors = 3;
+  constexpr double kMinDistanceM = 10.0;
+  std::vector<const AnchorResult*> ok;
+  for (const AnchorResult& a : result.frames) {
+    if (a.status == AnchorStatus::kOk && a.has_pose && std::isfinite(a.scale_m_per_unit) &&
+        a.scale_m_per_unit > 0.0) {
+      ok.push_back(&a);
+    }
+  }
+  std::sort(ok.begin(), ok.end(),
+            [](const AnchorResult* a, const AnchorResult* b) { return a->frame < b->frame; });
+  std::vector<Eigen::Vector2d> xy;
+  double s = 0.0;
+  for (size_t i = 0; i < ok.size(); ++i) {
+    if (i > 0) {
+      s += (ok[i]->map_from_cam.translation - ok[i - 1]->map_from_cam.translation).head<2>().norm();
+    }
+    xy.emplace_back(s, std::log(ok[i]->scale_m_per_unit));
+  }
+  const std::optional<double> slope =
+      structure_internal::LeastSquaresSlope(xy, kMinAnchors, kMinDistanceM);
+  if (!slope) return std::nullopt;
+  double mean_x = 0.0, mean_y = 0.0;
+  for (const Eigen::Vector2d& p : xy) {
+    mean_x += p.x();
+    mean_y += p.y();
+  }
+  mean_x /= static_cast<double>(xy.size());
+  mean_y /= static_cast<double>(xy.size());
+  VoScaleTrend trend;
+  trend.anchors = static_cast<int>(xy.size());
+  trend.distance_m = s;
+  trend.first_scale = std::exp(mean_y - *slope * mean_x);
+  trend.last_scale = std::exp(mean_y + *slope * (s - mean_x));
+  trend.percent_per_100m = 100.0 * 100.0 * *slope;
+  return trend;
+}
+
 namespace {
 
 // AnchorDriveByStructure, and with `alternative`, AnchorDriveByStructureAuto.

@@ -24,6 +24,10 @@
 namespace epiloc {
 namespace {
 
+// The VO's scale change (ScaleTrendOfAnchors) above which `anchor` warns: 10 % per 100 m is 4 %
+// over the default 40 m window.
+constexpr double kScaleTrendWarningPercentPer100m = 10.0;
+
 // The trajectory of --vo (ImportTrajectory: any format georef reads, its times put on the
 // drive's clock) with its points (--vo-points, else those of a stella_vslam map, else the points
 // file beside it when there, else none).
@@ -506,6 +510,24 @@ int RunAnchor(int argc, char** argv) {
       static_cast<long long>(by_status[1]), static_cast<long long>(by_status[2]),
       static_cast<long long>(by_status[3]), static_cast<long long>(by_status[4]),
       n > 0 ? result.seconds / n : 0.0, result.seconds, options.num_threads, method.c_str());
+  if (method == "structure") {
+    if (const std::optional<VoScaleTrend> trend = ScaleTrendOfAnchors(result)) {
+      std::printf(
+          "VO scale from the ok anchors: %.4f -> %.4f m per unit over %.0f m (%+.1f %% per 100 "
+          "m, %d anchors)\n",
+          trend->first_scale, trend->last_scale, trend->distance_m, trend->percent_per_100m,
+          trend->anchors);
+      // 10 % per 100 m is 4 % over the default 40 m window, where one similarity per window
+      // already turns and moves the camera (5 % over 40 m: 0.5 deg, 0.12 m; README).
+      if (std::abs(trend->percent_per_100m) >= kScaleTrendWarningPercentPer100m) {
+        spdlog::warn(
+            "the VO's scale changes by {:+.1f} % per 100 m along the drive: a steady change like "
+            "this usually comes from the camera's calibration (its radial distortion; README, "
+            "\"What the drift responds to\"); the anchors model it (--scale-drift anchors)",
+            trend->percent_per_100m);
+      }
+    }
+  }
   return kExitOk;
 }
 

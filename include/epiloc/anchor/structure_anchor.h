@@ -255,6 +255,22 @@ std::vector<Eigen::Quaterniond> ConsensusRotations(const std::vector<PlacedAncho
 // AnchorDriveByStructureAuto keeps, of two structures, the one with the smaller.
 double MedianAlongSigma(const AnchorDriveResult& result);
 
+// How the VO's scale changes along the drive, from the ok anchors' scales (scale_m_per_unit):
+// the least-squares slope of log(scale) over the distance travelled between the anchors' centres
+// (horizontal chords in frame order). A monocular VO's scale wanders; a steady change of
+// several percent per 100 m is the mark of a camera calibration error, often in the radial
+// distortion (README, "What the drift responds to": the shared drive's VO loses 14 % over 60 m,
+// and a radial term k1 of about +0.017 in its calibration takes that away). None with fewer
+// than three ok anchors or less than 10 m between the first and the last.
+struct VoScaleTrend {
+  int anchors = 0;           // ok anchors used
+  double distance_m = 0.0;   // travelled from the first to the last of them
+  double first_scale = NAN;  // the fitted line's scale at the first and at the last
+  double last_scale = NAN;
+  double percent_per_100m = 0.0;  // 100 m times the slope of log(scale), in percent
+};
+std::optional<VoScaleTrend> ScaleTrendOfAnchors(const AnchorDriveResult& result);
+
 // Anchors the selected frames of a drive (inputs.frames / inputs.every; photos_dir unused) by
 // registering `vo`'s structure to the map. Frames without a VO pose are `lost`. Throws Error as
 // AnchorDrive does. `progress` gets (frames done, frames).
