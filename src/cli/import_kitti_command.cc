@@ -59,11 +59,20 @@ int RunImportKitti(int argc, char** argv) {
                  "by its reported accuracy; raw: as recorded")
       ->check(CLI::IsMember({"fused", "raw"}))
       ->capture_default_str();
+  std::string frame_time = "image";
+  app.add_option("--frame-time", frame_time,
+                 "image: a frame's time is its image timestamp, the truth at the OXTS records; "
+                 "trigger: the Velodyne's forward-facing time, which triggers the cameras (17 ms "
+                 "earlier on drive 0005), the truth interpolated there")
+      ->check(CLI::IsMember({"image", "trigger"}))
+      ->capture_default_str();
   app.add_option("--out", options.out_dir, "Drive directory to write")->required();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
   if (!frames.empty()) ParseFrameRange(frames, options);
   options.oxts_positions = oxts_positions == "raw" ? KittiImportOptions::OxtsPositions::kRaw
                                                    : KittiImportOptions::OxtsPositions::kFused;
+  options.frame_time = frame_time == "trigger" ? KittiImportOptions::FrameTime::kTrigger
+                                               : KittiImportOptions::FrameTime::kImage;
 
   const Drive drive = ImportKitti(options);
   std::printf("%s: drive '%s' with %zu frames, %zu GNSS samples, %zu LiDAR scans\n",

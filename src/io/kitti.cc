@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <random>
 #include <regex>
 #include <sstream>
@@ -357,10 +358,22 @@ Drive ImportKitti(const KittiImportOptions& options) {
   const auto in_span = [&](frame_t f) {
     return f >= options.start && (options.stop < 0 || f < options.stop);
   };
+  const fs::path velo_dir = raw / "velodyne_points";
+  const std::string velo_times_path = (velo_dir / "timestamps.txt").string();
+  std::vector<double> trigger_times;
+  const bool at_trigger = options.frame_time == KittiImportOptions::FrameTime::kTrigger;
+  if (at_trigger) {
+    if (!fs::is_regular_file(velo_times_path)) {
+      Throw("{}: not found: the frames' trigger times (--frame-time trigger) are the Velodyne's",
+            velo_times_path);
+    }
+    trigger_times = ReadTimestamps(velo_times_path);
+  }
   for (const auto& [frame, path] : NumberedFiles(image_dir / "data", ".png")) {
     if (!in_span(frame) || (frame - options.start) % options.step != 0) continue;
-    drive.frames.push_back(
-        {frame, TimeOfFrame(image_times, frame, image_times_path), path.string()});
+    const double t = at_trigger ? TimeOfFrame(trigger_times, frame, velo_times_path)
+                                : TimeOfFrame(image_times, frame, image_times_path);
+    drive.frames.push_back({frame, t, path.string()});
   }
   if (drive.frames.empty()) {
     Throw("{}: no frames in the selection [{}, {}) step {}", (image_dir / "data").string(),
@@ -384,6 +397,7 @@ Drive ImportKitti(const KittiImportOptions& options) {
   PositionTrack imu_track;  // orientation field holds enu_from_imu
   PositionTrack truth;
   truth.source = (raw / "oxts").string();
+  PositionTrack camera_track;  // the camera at every OXTS record, for kTrigger
   for (const auto& r : oxts) {
     const Eigen::Matrix3d enu_from_imu = EnuFromImu(r.roll_rad, r.pitch_rad, r.yaw_rad);
     PositionSample imu;
@@ -392,7 +406,6 @@ Drive ImportKitti(const KittiImportOptions& options) {
     imu.enu_from_cam = Eigen::Quaterniond(enu_from_imu);
     imu.frame = r.frame;
     imu_track.samples.push_back(imu);
-    if (!in_span(r.frame)) continue;
     PositionSample cam;
     cam.timestamp_s = r.timestamp_s;
     cam.position = EnuFrame(r.position).ToGeodetic(enu_from_imu * center_in_imu);
@@ -400,7 +413,25 @@ Drive ImportKitti(const KittiImportOptions& options) {
         (EnuToEnuRotation(cam.position, r.position) * *imu.enu_from_cam * imu_from_rect0.rotation)
             .normalized();
     cam.frame = r.frame;
-    truth.samples.push_back(cam);
+    camera_track.samples.push_back(cam);
+    if (in_span(r.frame) && !at_trigger) truth.samples.push_back(cam);
+  }
+  if (at_trigger) {
+    // One row per OXTS record of the span, at its frame's trigger time (the OXTS runs at 10 Hz
+    // here: the neighbouring records are 0.1 s apart; the drive's first trigger precedes its first
+    // record by a few tens of milliseconds and is extrapolated from the first two).
+    constexpr double kMaxGapS = 0.2;
+    for (const auto& r : oxts) {
+      if (!in_span(r.frame)) continue;
+      const double t = TimeOfFrame(trigger_times, r.frame, velo_times_path);
+      std::optional<PositionSample> cam = camera_track.Interpolate(t, kMaxGapS);
+      if (!cam) {
+        Throw("{}: no OXTS record within {} s of frame {}'s trigger time", truth.source, kMaxGapS,
+              r.frame);
+      }
+      cam->frame = r.frame;
+      truth.samples.push_back(*cam);
+    }
   }
   if (truth.samples.empty()) Throw("{}: no OXTS record in the selected span", truth.source);
   if (options.gps_noise_sigma_m > 0) {
@@ -417,9 +448,7 @@ Drive ImportKitti(const KittiImportOptions& options) {
   drive.ground_truth = truth;
 
   // LiDAR scans present in the span, posed by the IMU track at the scan time.
-  const fs::path velo_dir = raw / "velodyne_points";
   if (fs::is_directory(velo_dir / "data")) {
-    const std::string velo_times_path = (velo_dir / "timestamps.txt").string();
     const std::vector<double> velo_times = ReadTimestamps(velo_times_path);
     for (const auto& [frame, path] : NumberedFiles(velo_dir / "data", ".bin")) {
       if (!in_span(frame)) continue;

@@ -107,6 +107,41 @@ TEST(KittiImport, SelectsFramesByStartStopStep) {
   EXPECT_EQ(drive.ground_truth->samples.front().frame, 2);
 }
 
+// --frame-time trigger: a frame's time is the Velodyne's forward-facing time (20 ms before the
+// OXTS record here), and its truth the camera track interpolated there, the drive's first frame
+// extrapolated from the first two records; the image timestamps otherwise. Without the
+// Velodyne's timestamps it is an error naming the file.
+TEST(KittiImport, TriggerTimesPutTheTruthAtTheVelodyneTimes) {
+  MiniKitti kitti;
+  KittiImportOptions options = kitti.Options(0);
+  options.frame_time = KittiImportOptions::FrameTime::kTrigger;
+  ExpectError([&] { ImportKitti(options); }, {"velodyne_points/timestamps.txt", "not found"});
+  std::string trigger_times;
+  for (int i = 0; i < 4; ++i) {
+    trigger_times += fmt::format("2011-09-26 13:04:{:012.9f}\n", 32.0 + 0.1 * i - 0.02);
+  }
+  WriteText(kitti.drive() + "/velodyne_points/timestamps.txt", trigger_times);
+  const Drive at_image = ImportKitti(kitti.Options(0));
+  const Drive at_trigger = ImportKitti(options);
+  ASSERT_EQ(at_trigger.frames.size(), 4u);
+  ASSERT_EQ(at_trigger.ground_truth->samples.size(), 4u);
+  const std::vector<PositionSample>& image = at_image.ground_truth->samples;
+  const std::vector<PositionSample>& trigger = at_trigger.ground_truth->samples;
+  const EnuFrame enu(image[0].position);
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_NEAR(at_trigger.frames[i].timestamp_s, at_image.frames[i].timestamp_s - 0.025, 1e-6);
+    EXPECT_EQ(trigger[i].frame, static_cast<frame_t>(i));
+    EXPECT_NEAR(trigger[i].timestamp_s, at_trigger.frames[i].timestamp_s, 1e-9);
+    // 0.2 of the way back to the record before (the first: ahead of the second, extrapolated).
+    const size_t j = i == 0 ? 1 : i - 1;
+    const double w = i == 0 ? -0.2 : 0.2;
+    const Eigen::Vector3d expected = (1.0 - w) * Enu(enu, image[i]) + w * Enu(enu, image[j]);
+    EXPECT_LT((Enu(enu, trigger[i]) - expected).norm(), 1e-6) << i;
+    EXPECT_GT((Enu(enu, trigger[i]) - Enu(enu, image[i])).norm(), 0.2) << i;
+    EXPECT_LT(trigger[i].enu_from_cam->angularDistance(*image[i].enu_from_cam), 1e-9);
+  }
+}
+
 TEST(KittiImport, RejectsBadInput) {
   MiniKitti kitti;
   KittiImportOptions options = kitti.Options();

@@ -18,7 +18,8 @@
 //
 // Output: frames = the PNGs of image_0N (absolute paths, not copies; frame ids = KITTI frame
 // numbers), camera = rectified camera N (P_rect_0N intrinsics, S_rect_0N size, no distortion),
-// ground truth = the camera track at the OXTS timestamps (frame column set), GNSS = ground-truth
+// ground truth = the camera track at the OXTS timestamps (frame column set; with
+// FrameTime::kTrigger at the frames' trigger times), GNSS = ground-truth
 // positions without orientation, or with simulated consumer-GPS errors (below), LiDAR = every
 // velodyne_points/data/*.bin present, with the sensor pose of the IMU track interpolated at the
 // scan's timestamp composed with imu_from_velo, format "kitti_bin".
@@ -68,6 +69,16 @@ struct KittiImportOptions {
   std::string name;                // drive name; empty = "kitti_<date>_<drive>_cam<N>"
   enum class OxtsPositions { kFused, kRaw };
   OxtsPositions oxts_positions = OxtsPositions::kFused;  // see above
+  // The time of a frame. kImage: image_0N/timestamps.txt, the ground truth at the OXTS
+  // timestamps. kTrigger: the Velodyne's forward-facing time of the frame
+  // (velodyne_points/timestamps.txt; KITTI's readme: the cameras are triggered by the scanner
+  // facing forward), and the ground truth the camera track interpolated there, one row per frame
+  // of the span. On drive 0005 the images' timestamps are 17 ms after the trigger and the OXTS
+  // rows 13-21 ms after it, so the kImage truth of a frame is where the camera was 0.06-0.11 m
+  // later (README, "The along-road lag"). kImage stays the default until the figures that rest
+  // on it are measured again.
+  enum class FrameTime { kImage, kTrigger };
+  FrameTime frame_time = FrameTime::kImage;
 
   // Throws Error naming the invalid field.
   void Check() const;
