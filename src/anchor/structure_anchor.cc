@@ -185,8 +185,7 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
     result.message = "no VO pose at the frame";
     return finish(result);
   }
-  const auto gnss_at = [&](double t) { return GnssInMap(run, t); };
-  const auto gnss_k = gnss_at(record.timestamp_s);
+  const auto gnss_k = GnssInMap(run, record.timestamp_s);
   if (!gnss_k) {
     result.status = AnchorStatus::kNoPrior;
     result.message = fmt::format("no GNSS position within {} s", drive.max_gap_s);
@@ -200,7 +199,7 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
   std::vector<Eigen::Vector3d> window_gnss;
   const auto take = [&](int j) {
     if (vo.SegmentOf(vo.poses[j].frame) != segment) return false;
-    const auto g = gnss_at(vo.poses[j].timestamp_s);
+    const auto g = GnssInMap(run, vo.poses[j].timestamp_s);
     if (!g) return false;
     if ((*g - *gnss_k).head<2>().norm() > half) return false;
     window.push_back(j);

@@ -649,53 +649,6 @@ TEST(StructureAnchor, PlacingANeighbourFollowsTheDriftAlongThePath) {
   EXPECT_NEAR((no_drift.Placing(at20) - (at0.map_from_world * centres[20])).norm(), 0.0, 1e-12);
 }
 
-// The VO's scale trend from the anchors: ok anchors 10 m apart on an L-shaped path (the distance
-// is the travelled one, not the straight line), scales exp(-0.002 x): -20 % per 100 m exactly.
-// Rejected anchors, even with wild scales, and frames without a pose do not count; fewer than
-// three ok anchors, or less than 10 m between the first and the last, give none.
-TEST(StructureAnchor, ScaleTrendOfAnchorsIsTheSlopeOfLogScaleOverTheDistanceTravelled) {
-  AnchorDriveResult result;
-  for (int i = 0; i < 8; ++i) {
-    AnchorResult a;
-    a.frame = 10 * i;
-    a.status = AnchorStatus::kOk;
-    a.has_pose = true;
-    const double x = 10.0 * i;  // 40 m east, then 30 m north
-    a.map_from_cam.translation =
-        i <= 4 ? Eigen::Vector3d(x, 0.0, 2.0) : Eigen::Vector3d(40.0, x - 40.0, 2.0);
-    a.scale_m_per_unit = 1.4 * std::exp(-0.002 * x);
-    result.frames.push_back(a);
-  }
-  result.frames[2].status = AnchorStatus::kRejected;
-  result.frames[2].scale_m_per_unit = 9.0;
-  AnchorResult lost;
-  lost.frame = 75;
-  lost.status = AnchorStatus::kLost;
-  result.frames.push_back(lost);
-  // Out of frame order in the result: the trend sorts by frame.
-  std::swap(result.frames[3], result.frames[6]);
-
-  const std::optional<VoScaleTrend> trend = ScaleTrendOfAnchors(result);
-  ASSERT_TRUE(trend.has_value());
-  EXPECT_EQ(trend->anchors, 7);
-  EXPECT_NEAR(trend->distance_m, 70.0, 1e-9);
-  EXPECT_NEAR(trend->percent_per_100m, -20.0, 1e-9);
-  EXPECT_NEAR(trend->first_scale, 1.4, 1e-9);
-  EXPECT_NEAR(trend->last_scale, 1.4 * std::exp(-0.14), 1e-9);
-
-  AnchorDriveResult two;
-  two.frames = {result.frames[0], result.frames[1]};
-  EXPECT_FALSE(ScaleTrendOfAnchors(two).has_value());
-  AnchorDriveResult short_run;
-  for (int i = 0; i < 4; ++i) {
-    AnchorResult a = result.frames[0];
-    a.frame = i;
-    a.map_from_cam.translation.x() = 3.0 * i;  // 9 m in all
-    short_run.frames.push_back(a);
-  }
-  EXPECT_FALSE(ScaleTrendOfAnchors(short_run).has_value());
-}
-
 // Seven anchors 5 m apart: their similarities' rotations turned about three axes by up to
 // 0.2 degrees around a common one, plus one anchor 3 degrees off. Each anchor's consensus is the
 // median of the rotations of the anchors within the window: with them all, every anchor gets the
