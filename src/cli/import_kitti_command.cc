@@ -59,12 +59,13 @@ int RunImportKitti(int argc, char** argv) {
                  "by its reported accuracy; raw: as recorded")
       ->check(CLI::IsMember({"fused", "raw"}))
       ->capture_default_str();
-  std::string frame_time = "image";
+  std::string frame_time = "auto";
   app.add_option("--frame-time", frame_time,
-                 "image: a frame's time is its image timestamp, the truth at the OXTS records; "
-                 "trigger: the Velodyne's forward-facing time, which triggers the cameras (17 ms "
-                 "earlier on drive 0005), the truth interpolated there")
-      ->check(CLI::IsMember({"image", "trigger"}))
+                 "trigger: a frame's time is the Velodyne's forward-facing time, which triggers "
+                 "the cameras (17 ms before the image timestamp on drive 0005), the truth "
+                 "interpolated there; image: the image timestamp, the truth at the OXTS records; "
+                 "auto: trigger when velodyne_points/timestamps.txt is there, image otherwise")
+      ->check(CLI::IsMember({"auto", "image", "trigger"}))
       ->capture_default_str();
   app.add_option("--out", options.out_dir, "Drive directory to write")->required();
   if (auto code = Parse(app, flags, argc, argv)) return *code;
@@ -72,7 +73,8 @@ int RunImportKitti(int argc, char** argv) {
   options.oxts_positions = oxts_positions == "raw" ? KittiImportOptions::OxtsPositions::kRaw
                                                    : KittiImportOptions::OxtsPositions::kFused;
   options.frame_time = frame_time == "trigger" ? KittiImportOptions::FrameTime::kTrigger
-                                               : KittiImportOptions::FrameTime::kImage;
+                       : frame_time == "image" ? KittiImportOptions::FrameTime::kImage
+                                               : KittiImportOptions::FrameTime::kAuto;
 
   const Drive drive = ImportKitti(options);
   std::printf("%s: drive '%s' with %zu frames, %zu GNSS samples, %zu LiDAR scans\n",

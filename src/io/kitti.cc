@@ -361,9 +361,23 @@ Drive ImportKitti(const KittiImportOptions& options) {
   const fs::path velo_dir = raw / "velodyne_points";
   const std::string velo_times_path = (velo_dir / "timestamps.txt").string();
   std::vector<double> trigger_times;
-  const bool at_trigger = options.frame_time == KittiImportOptions::FrameTime::kTrigger;
+  using FrameTime = KittiImportOptions::FrameTime;
+  const bool has_trigger_times = fs::is_regular_file(velo_times_path);
+  const bool at_trigger = options.frame_time == FrameTime::kTrigger ||
+                          (options.frame_time == FrameTime::kAuto && has_trigger_times);
+  if (options.frame_time == FrameTime::kAuto) {
+    if (has_trigger_times) {
+      spdlog::info("{}: frames at the Velodyne's trigger times, the truth interpolated there",
+                   velo_times_path);
+    } else {
+      spdlog::warn(
+          "{}: not found: frames at their image timestamps, the truth at the OXTS "
+          "records (some tens of milliseconds after the camera's exposure)",
+          velo_times_path);
+    }
+  }
   if (at_trigger) {
-    if (!fs::is_regular_file(velo_times_path)) {
+    if (!has_trigger_times) {
       Throw("{}: not found: the frames' trigger times (--frame-time trigger) are the Velodyne's",
             velo_times_path);
     }

@@ -110,19 +110,28 @@ TEST(KittiImport, SelectsFramesByStartStopStep) {
 // --frame-time trigger: a frame's time is the Velodyne's forward-facing time (20 ms before the
 // OXTS record here), and its truth the camera track interpolated there, the drive's first frame
 // extrapolated from the first two records; the image timestamps otherwise. Without the
-// Velodyne's timestamps it is an error naming the file.
+// Velodyne's timestamps it is an error naming the file. The default (auto) takes the trigger
+// times when they are there, the image timestamps when not.
 TEST(KittiImport, TriggerTimesPutTheTruthAtTheVelodyneTimes) {
   MiniKitti kitti;
   KittiImportOptions options = kitti.Options(0);
   options.frame_time = KittiImportOptions::FrameTime::kTrigger;
   ExpectError([&] { ImportKitti(options); }, {"velodyne_points/timestamps.txt", "not found"});
+  KittiImportOptions image_options = kitti.Options(0);
+  image_options.frame_time = KittiImportOptions::FrameTime::kImage;
+  const Drive without_trigger_times = ImportKitti(kitti.Options(0));
+  EXPECT_EQ(without_trigger_times.frames, ImportKitti(image_options).frames);
   std::string trigger_times;
   for (int i = 0; i < 4; ++i) {
     trigger_times += fmt::format("2011-09-26 13:04:{:012.9f}\n", 32.0 + 0.1 * i - 0.02);
   }
   WriteText(kitti.drive() + "/velodyne_points/timestamps.txt", trigger_times);
-  const Drive at_image = ImportKitti(kitti.Options(0));
+  const Drive at_image = ImportKitti(image_options);
   const Drive at_trigger = ImportKitti(options);
+  EXPECT_EQ(without_trigger_times.frames, at_image.frames);
+  const Drive by_default = ImportKitti(kitti.Options(0));
+  EXPECT_EQ(by_default.frames, at_trigger.frames);
+  EXPECT_EQ(by_default.ground_truth->samples, at_trigger.ground_truth->samples);
   ASSERT_EQ(at_trigger.frames.size(), 4u);
   ASSERT_EQ(at_trigger.ground_truth->samples.size(), 4u);
   const std::vector<PositionSample>& image = at_image.ground_truth->samples;
@@ -274,7 +283,8 @@ TEST_F(KittiRealData, ImportsCameraZeroAndOne) {
   ASSERT_EQ(cam0.frames.size(), 154u);
   EXPECT_EQ(cam0.frames.front().frame, 0);
   EXPECT_EQ(cam0.frames.back().frame, 153);
-  EXPECT_NEAR(cam0.frames[0].timestamp_s, 1317042272.351950336, 1e-6);
+  // The trigger time (velodyne_points/timestamps.txt), 17 ms before the image's timestamp.
+  EXPECT_NEAR(cam0.frames[0].timestamp_s, 1317042272.335337762, 1e-6);
   EXPECT_EQ(cam0.camera.width, 1242);
   EXPECT_EQ(cam0.camera.height, 375);
   EXPECT_EQ(cam0.camera.fx, 721.5377);
@@ -354,7 +364,8 @@ TrackConsistency Consistency(const Drive& drive) {
       const double step = (Enu(frame, truth.samples[i]) - Enu(frame, truth.samples[i - 1])).norm();
       const double speed = 0.5 * (std::hypot(oxts[i].values[6], oxts[i].values[7]) +
                                   std::hypot(oxts[i - 1].values[6], oxts[i - 1].values[7]));
-      const double ratio = step / (speed * (oxts[i].timestamp_s - oxts[i - 1].timestamp_s));
+      const double dt = truth.samples[i].timestamp_s - truth.samples[i - 1].timestamp_s;
+      const double ratio = step / (speed * dt);
       c.min_step_ratio = std::min(c.min_step_ratio, ratio);
       c.max_step_ratio = std::max(c.max_step_ratio, ratio);
     }

@@ -18,8 +18,8 @@
 //
 // Output: frames = the PNGs of image_0N (absolute paths, not copies; frame ids = KITTI frame
 // numbers), camera = rectified camera N (P_rect_0N intrinsics, S_rect_0N size, no distortion),
-// ground truth = the camera track at the OXTS timestamps (frame column set; with
-// FrameTime::kTrigger at the frames' trigger times), GNSS = ground-truth
+// ground truth = the camera track at the frames' trigger times or at the OXTS timestamps (frame
+// column set; see FrameTime), GNSS = ground-truth
 // positions without orientation, or with simulated consumer-GPS errors (below), LiDAR = every
 // velodyne_points/data/*.bin present, with the sensor pose of the IMU track interpolated at the
 // scan's timestamp composed with imu_from_velo, format "kitti_bin".
@@ -75,10 +75,10 @@ struct KittiImportOptions {
   // facing forward), and the ground truth the camera track interpolated there, one row per frame
   // of the span. On drive 0005 the images' timestamps are 17 ms after the trigger and the OXTS
   // rows 13-21 ms after it, so the kImage truth of a frame is where the camera was 0.06-0.11 m
-  // later (README, "The along-road lag"). kImage stays the default until the figures that rest
-  // on it are measured again.
-  enum class FrameTime { kImage, kTrigger };
-  FrameTime frame_time = FrameTime::kImage;
+  // later (README, "The along-road lag"). kAuto (the default): kTrigger when the Velodyne's
+  // timestamps are there, kImage otherwise (logged; an image-only download has no trigger times).
+  enum class FrameTime { kAuto, kImage, kTrigger };
+  FrameTime frame_time = FrameTime::kAuto;
 
   // Throws Error naming the invalid field.
   void Check() const;
