@@ -523,7 +523,8 @@ int RunAnchor(int argc, char** argv) {
         spdlog::warn(
             "the VO's scale changes by {:+.1f} % per 100 m along the drive: a steady change like "
             "this usually comes from the camera's calibration (its radial distortion; README, "
-            "\"What the drift responds to\"); the anchors model it (--scale-drift anchors)",
+            "\"What the drift responds to\"); the anchors model it (--scale-drift anchors), and "
+            "`epiloc calibrate-radial` estimates the term from this map",
             trend->percent_per_100m);
       }
     }

@@ -7,6 +7,7 @@
 
 #include "epiloc/anchor/anchor.h"
 #include "epiloc/geo/geodetic.h"
+#include "epiloc/geo/rigid3.h"
 #include "epiloc/georef/anchors.h"
 #include "epiloc/io/drive.h"
 #include "epiloc/io/result.h"
@@ -44,6 +45,22 @@ inline double MaxHorizontal(const ResultTable& table,
     const auto truth = drive.ground_truth->Interpolate(r.timestamp_s, drive.max_gap_s);
     if (!truth) continue;
     worst = std::max(worst, (enu.ToEnu(r.position) - enu.ToEnu(truth->position)).head<2>().norm());
+  }
+  return worst;
+}
+
+// Largest rotation error (degrees) of the ok rows of `method` with an orientation against the
+// drive's ground truth (local ENU at each camera on both sides; the frames' convergence over a
+// street is far below the errors measured).
+inline double MaxRotationDeg(const ResultTable& table,
+                             const std::string& method,
+                             const Drive& drive) {
+  double worst = 0.0;
+  for (const ResultRow& r : table.rows) {
+    if (r.method != method || r.status != ResultStatus::kOk || !r.enu_from_cam) continue;
+    const auto truth = drive.ground_truth->Interpolate(r.timestamp_s, drive.max_gap_s);
+    if (!truth || !truth->enu_from_cam) continue;
+    worst = std::max(worst, RotationDifferenceDeg(*r.enu_from_cam, *truth->enu_from_cam));
   }
   return worst;
 }

@@ -31,6 +31,7 @@ int RunExport(int argc, char** argv);
 int RunBuildMap(int argc, char** argv);
 int RunRender(int argc, char** argv);
 int RunAnchor(int argc, char** argv);
+int RunCalibrateRadial(int argc, char** argv);
 int RunVo(int argc, char** argv);
 int RunGeoref(int argc, char** argv);
 int RunLidarTrack(int argc, char** argv);
