@@ -86,6 +86,10 @@ LidarTrackStep RegisterPair(const PointCloud& a,
   step.heading_deg = WrapDeg((az_track - az_lidar) * kRadToDeg);
   step.turn_difference_deg =
       RotationDifferenceDeg(track_a_from_b.rotation, lidar_a_from_b->rotation);
+  // The track's rotation relative to the scans', in the earlier scan's frame: its component
+  // about the up axis is the difference of the two turns (to first order in the small tilts).
+  const Eigen::AngleAxisd difference(track_a_from_b.rotation * lidar_a_from_b->rotation.inverse());
+  step.yaw_difference_deg = difference.angle() * difference.axis().z() * kRadToDeg;
   return step;
 }
 
@@ -141,7 +145,13 @@ LidarTrack EstimateLidarTrack(const Drive& drive,
   // The path: registered steps turned by the track's attitude at the earlier scan.
   std::vector<Eigen::Vector3d> path(n, Eigen::Vector3d::Zero());
   std::vector<double> pitches, headings;
+  out.cumulative_yaw_deg.assign(n, 0.0);
   for (size_t i = 0; i + 1 < n; ++i) {
+    out.cumulative_yaw_deg[i + 1] =
+        out.cumulative_yaw_deg[i] +
+        (out.steps[i].registered ? out.steps[i].yaw_difference_deg : 0.0);
+    out.max_abs_cumulative_yaw_deg =
+        std::max(out.max_abs_cumulative_yaw_deg, std::abs(out.cumulative_yaw_deg[i + 1]));
     const LidarTrackStep& s = out.steps[i];
     const Eigen::Vector3d track_step =
         map_from_sensor[i + 1].translation - map_from_sensor[i].translation;

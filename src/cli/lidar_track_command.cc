@@ -60,20 +60,22 @@ int RunLidarTrack(int argc, char** argv) {
   progress.Finish();
 
   if (!steps_path.empty()) {
-    CsvWriter csv(steps_path,
-                  {"from_scan", "to_scan", "registered", "inlier_share", "rms_m", "lidar_m",
-                   "track_m", "pitch_deg", "heading_deg", "turn_difference_deg", "correction_e_m",
-                   "correction_n_m", "correction_u_m", "message"});
+    CsvWriter csv(steps_path, {"from_scan", "to_scan", "registered", "inlier_share", "rms_m",
+                               "lidar_m", "track_m", "pitch_deg", "heading_deg",
+                               "turn_difference_deg", "yaw_difference_deg", "cumulative_yaw_deg",
+                               "correction_e_m", "correction_n_m", "correction_u_m", "message"});
     for (size_t i = 0; i < track.steps.size(); ++i) {
       const LidarTrackStep& s = track.steps[i];
       const Eigen::Vector3d& c = track.correction_m[i + 1];
-      csv.WriteRow({std::to_string(s.from_scan), std::to_string(s.to_scan),
-                    s.registered ? "1" : "0", fmt::format("{:.3f}", s.inlier_share),
-                    fmt::format("{:.4f}", s.rms_m), fmt::format("{:.4f}", s.lidar_m),
-                    fmt::format("{:.4f}", s.track_m), fmt::format("{:.3f}", s.pitch_deg),
-                    fmt::format("{:.3f}", s.heading_deg),
-                    fmt::format("{:.3f}", s.turn_difference_deg), fmt::format("{:.3f}", c.x()),
-                    fmt::format("{:.3f}", c.y()), fmt::format("{:.3f}", c.z()), s.message});
+      csv.WriteRow(
+          {std::to_string(s.from_scan), std::to_string(s.to_scan), s.registered ? "1" : "0",
+           fmt::format("{:.3f}", s.inlier_share), fmt::format("{:.4f}", s.rms_m),
+           fmt::format("{:.4f}", s.lidar_m), fmt::format("{:.4f}", s.track_m),
+           fmt::format("{:.3f}", s.pitch_deg), fmt::format("{:.3f}", s.heading_deg),
+           fmt::format("{:.3f}", s.turn_difference_deg),
+           fmt::format("{:.3f}", s.yaw_difference_deg),
+           fmt::format("{:.3f}", track.cumulative_yaw_deg[i + 1]), fmt::format("{:.3f}", c.x()),
+           fmt::format("{:.3f}", c.y()), fmt::format("{:.3f}", c.z()), s.message});
     }
     csv.Close();
   }
@@ -82,11 +84,12 @@ int RunLidarTrack(int argc, char** argv) {
       "lidar-track: %d of %zu pairs registered; the track's steps are %.2f %% of the scans' "
       "(%.2f m against %.2f m); its direction of travel differs from theirs by %+.2f deg in "
       "pitch and %+.2f deg in heading (medians; up to %.2f and %.2f deg); turns agree within "
-      "%.2f deg; corrections up to %.2f m\n",
+      "%.2f deg per pair, its heading turns away from theirs by up to %.2f deg along the drive "
+      "(%+.2f at the end); corrections up to %.2f m\n",
       track.num_registered, track.steps.size(), 100.0 * ratio, track.track_length_m,
       track.lidar_length_m, track.median_pitch_deg, track.median_heading_deg,
       track.max_abs_pitch_deg, track.max_abs_heading_deg, track.max_turn_difference_deg,
-      track.max_correction_m);
+      track.max_abs_cumulative_yaw_deg, track.cumulative_yaw_deg.back(), track.max_correction_m);
   for (const LidarTrackStep& s : track.steps) {
     if (!s.registered) spdlog::warn("scans {} -> {}: {}", s.from_scan, s.to_scan, s.message);
   }

@@ -68,6 +68,9 @@ struct LidarTrackStep {
   double pitch_deg = 0.0;
   double heading_deg = 0.0;
   double turn_difference_deg = 0.0;  // angle between the track's turn and the scans' turn
+  // The track's turn minus the scans' about the earlier scan's up (z) axis, degrees, signed
+  // (positive: the track turns further to the left, counter-clockwise seen from above).
+  double yaw_difference_deg = 0.0;
 };
 
 struct LidarTrack {
@@ -83,6 +86,13 @@ struct LidarTrack {
   double max_abs_pitch_deg = 0.0;   // and the largest of each, in size
   double max_abs_heading_deg = 0.0;
   double max_turn_difference_deg = 0.0;
+  // The registered steps' yaw differences summed from the first scan: how far the track's
+  // heading (its attitude, e.g. an INS's) has turned away from the scans' by each scan
+  // (cumulative_yaw_deg, one per scan, 0 at the first), and the largest of it in size. A track
+  // whose heading is right keeps this within the scans' own registration noise (hundredths of a
+  // degree per pair); a heading that over- or under-turns shows as a ramp through the turns.
+  std::vector<double> cumulative_yaw_deg;
+  double max_abs_cumulative_yaw_deg = 0.0;
   double max_correction_m = 0.0;  // largest |correction_m|
 };
 
