@@ -145,7 +145,7 @@ RadialCalibrationResult CalibrateRadialTerm(
                        residuals.end());
       run.median_residual_m = residuals[residuals.size() / 2];
     }
-    run.trend = ScaleTrendOfAnchors(anchors);
+    run.trend = ScaleTrendOfAnchors(anchors, [&vo](frame_t f) { return vo.SegmentOf(f); });
     if (!run.trend) {
       run.message = fmt::format("{} of {} anchors ok, fewer than 3 or within 10 m",
                                 run.ok_anchors, run.anchors);

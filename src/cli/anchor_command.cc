@@ -415,6 +415,7 @@ int RunAnchor(int argc, char** argv) {
 
   AnchorDriveResult result;
   Progress progress("anchor", 0);
+  VoStructure vo_segments;  // the VO's segments only (the scale trend, below)
   if (method == "structure") {
     structure.prior.camera_height_m = options.prior.camera_height_m;
     structure.gnss_sigma_m = options.gnss_sigma_m;
@@ -427,6 +428,7 @@ int RunAnchor(int argc, char** argv) {
                  inputs.vo_path);
     const Drive drive = LoadDrive(inputs.drive_dir);
     VoStructure vo = ReadVoForAnchoring(drive, inputs.vo_path, import, vo_points_path);
+    vo_segments.segments = vo.segments;
     const size_t read_poses = vo.poses.size();
     int interpolated = 0;
     vo.poses = PosesAtFrames(vo, drive, max_gap_s, &interpolated);
@@ -511,12 +513,13 @@ int RunAnchor(int argc, char** argv) {
       static_cast<long long>(by_status[3]), static_cast<long long>(by_status[4]),
       n > 0 ? result.seconds / n : 0.0, result.seconds, options.num_threads, method.c_str());
   if (method == "structure") {
-    if (const std::optional<VoScaleTrend> trend = ScaleTrendOfAnchors(result)) {
+    const auto segment_of = [&vo_segments](frame_t f) { return vo_segments.SegmentOf(f); };
+    if (const std::optional<VoScaleTrend> trend = ScaleTrendOfAnchors(result, segment_of)) {
       std::printf(
           "VO scale from the ok anchors: %.4f -> %.4f m per unit over %.0f m (%+.1f %% per 100 "
-          "m, %d anchors)\n",
+          "m, %d anchors, %d VO segment(s))\n",
           trend->first_scale, trend->last_scale, trend->distance_m, trend->percent_per_100m,
-          trend->anchors);
+          trend->anchors, trend->segments);
       // 10 % per 100 m is 4 % over the default 40 m window, where one similarity per window
       // already turns and moves the camera (5 % over 40 m: 0.5 deg, 0.12 m; README).
       if (std::abs(trend->percent_per_100m) >= kScaleTrendWarningPercentPer100m) {

@@ -58,5 +58,40 @@ TEST(StructureAnchorTrend, ScaleTrendOfAnchorsIsTheSlopeOfLogScaleOverTheDistanc
   EXPECT_FALSE(ScaleTrendOfAnchors(short_run).has_value());
 }
 
+// A VO restarted after a tracking loss (frame 40) starts its second segment with another scale
+// (x 0.6 here); within each the scale falls by 20 % per 100 m. Fitted as one line the jump
+// reads as a steep trend; with the segments each keeps its own level and the slope is exact. A
+// third segment with a single ok anchor says nothing about the slope and is left out.
+TEST(StructureAnchorTrend, EachVoSegmentKeepsItsOwnScale) {
+  AnchorDriveResult result;
+  for (int i = 0; i < 9; ++i) {
+    AnchorResult a;
+    a.frame = 10 * i;
+    a.status = AnchorStatus::kOk;
+    a.has_pose = true;
+    const double x = 10.0 * i;
+    a.map_from_cam.translation = Eigen::Vector3d(x, 0.0, 2.0);
+    a.scale_m_per_unit = (i < 4 ? 1.4 : i < 8 ? 0.84 : 3.0) * std::exp(-0.002 * x);
+    result.frames.push_back(a);
+  }
+  const auto segment_of = [](frame_t f) { return f < 40 ? 0 : f < 80 ? 1 : 2; };
+  AnchorDriveResult two_segments = result;
+  two_segments.frames.pop_back();
+  const std::optional<VoScaleTrend> plain = ScaleTrendOfAnchors(two_segments);
+  ASSERT_TRUE(plain.has_value());
+  const std::optional<VoScaleTrend> trend = ScaleTrendOfAnchors(result, segment_of);
+  ASSERT_TRUE(trend.has_value());
+  EXPECT_NEAR(trend->percent_per_100m, -20.0, 1e-9);
+  EXPECT_GT(std::abs(plain->percent_per_100m + 20.0), 10.0);
+  EXPECT_EQ(trend->anchors, 8);
+  EXPECT_EQ(trend->segments, 2);
+  EXPECT_NEAR(trend->distance_m, 60.0, 1e-9);  // 0-30 m and 40-70 m
+  EXPECT_NEAR(trend->first_scale, 1.4, 1e-9);
+  EXPECT_NEAR(trend->last_scale, 0.84 * std::exp(-0.14), 1e-9);  // the last one fitted
+  EXPECT_NEAR(ScaleTrendOfAnchors(two_segments, segment_of)->percent_per_100m, -20.0, 1e-9);
+  // Every segment a single anchor: no trend.
+  EXPECT_FALSE(ScaleTrendOfAnchors(result, [](frame_t f) { return static_cast<int>(f); }));
+}
+
 }  // namespace
 }  // namespace epiloc

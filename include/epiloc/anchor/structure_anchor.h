@@ -260,16 +260,23 @@ double MedianAlongSigma(const AnchorDriveResult& result);
 // (horizontal chords in frame order). A monocular VO's scale wanders; a steady change of
 // several percent per 100 m is the mark of a camera calibration error, often in the radial
 // distortion (README, "What the drift responds to": the shared drive's VO loses 14 % over 60 m,
-// and a radial term k1 of about +0.017 in its calibration takes that away). None with fewer
-// than three ok anchors or less than 10 m between the first and the last.
+// and a radial term k1 of about +0.017 in its calibration takes that away; `epiloc
+// calibrate-radial` finds the term from this trend). None with fewer than three ok anchors or
+// less than 10 m between the first and the last (summed over the segments, below).
 struct VoScaleTrend {
   int anchors = 0;           // ok anchors used
-  double distance_m = 0.0;   // travelled from the first to the last of them
+  int segments = 1;          // VO segments they lie in (each with two or more of them)
+  double distance_m = 0.0;   // travelled from the first to the last of them, within segments
   double first_scale = NAN;  // the fitted line's scale at the first and at the last
   double last_scale = NAN;
   double percent_per_100m = 0.0;  // 100 m times the slope of log(scale), in percent
 };
-std::optional<VoScaleTrend> ScaleTrendOfAnchors(const AnchorDriveResult& result);
+// With `segment_of` (frame -> the VO segment it belongs to, e.g. VoStructure::SegmentOf), each
+// segment keeps its own scale (a VO restarted after a tracking loss starts with another) and one
+// slope is fitted through all (the pooled within-segment least squares); segments with one ok
+// anchor are left out.
+std::optional<VoScaleTrend> ScaleTrendOfAnchors(
+    const AnchorDriveResult& result, const std::function<int(frame_t)>& segment_of = nullptr);
 
 // Anchors the selected frames of a drive (inputs.frames / inputs.every; photos_dir unused) by
 // registering `vo`'s structure to the map. Frames without a VO pose are `lost`. Throws Error as
