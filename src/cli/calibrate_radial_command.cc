@@ -2,6 +2,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <spdlog/spdlog.h>
 
@@ -92,25 +93,14 @@ int RunCalibrateRadial(int argc, char** argv) {
 
   const std::string work_dir = (std::filesystem::path(out_dir) / "calibration").string();
   const std::string table_path = (std::filesystem::path(work_dir) / "radial_calibration.csv").string();
-  VoResult best_vo;
-  double best_abs_trend = INFINITY;
-  Progress progress("calibrate-radial", options.max_runs);
-  const RadialCalibrationResult result = CalibrateRadialTerm(
-      inputs, options, work_dir,
-      [&](const RadialCalibrationRun& run, const VoResult& vo) {
-        if (run.trend && std::abs(run.trend->percent_per_100m) < best_abs_trend) {
-          best_abs_trend = std::abs(run.trend->percent_per_100m);
-          best_vo = vo;
-        }
-      },
-      progress.Callback());
-  progress.Finish();
-  {
+  // The runs' table, written again after each run: an interrupted search keeps what it measured.
+  std::vector<RadialCalibrationRun> runs;
+  const auto write_table = [&] {
     CsvWriter csv(table_path, {"run", "term", "value", "ok_anchors", "anchors",
-                               "trend_percent_per_100m", "distance_m", "first_scale",
-                               "last_scale", "median_residual_m", "seconds", "message"});
-    for (size_t i = 0; i < result.runs.size(); ++i) {
-      const RadialCalibrationRun& r = result.runs[i];
+                               "trend_percent_per_100m", "distance_m", "first_scale", "last_scale",
+                               "median_residual_m", "seconds", "message"});
+    for (size_t i = 0; i < runs.size(); ++i) {
+      const RadialCalibrationRun& r = runs[i];
       csv.WriteRow({std::to_string(i + 1), term, fmt::format("{:.6f}", r.term),
                     std::to_string(r.ok_anchors), std::to_string(r.anchors),
                     r.trend ? fmt::format("{:.3f}", r.trend->percent_per_100m) : "",
@@ -120,7 +110,23 @@ int RunCalibrateRadial(int argc, char** argv) {
                     fmt::format("{:.4f}", r.median_residual_m), fmt::format("{:.1f}", r.seconds),
                     r.message});
     }
-  }
+    csv.Close();
+  };
+  VoResult best_vo;
+  double best_abs_trend = INFINITY;
+  Progress progress("calibrate-radial", options.max_runs);
+  const RadialCalibrationResult result = CalibrateRadialTerm(
+      inputs, options, work_dir,
+      [&](const RadialCalibrationRun& run, const VoResult& vo) {
+        runs.push_back(run);
+        write_table();
+        if (run.trend && std::abs(run.trend->percent_per_100m) < best_abs_trend) {
+          best_abs_trend = std::abs(run.trend->percent_per_100m);
+          best_vo = vo;
+        }
+      },
+      progress.Callback());
+  progress.Finish();
   for (size_t i = 0; i < result.runs.size(); ++i) {
     const RadialCalibrationRun& r = result.runs[i];
     if (r.trend) {
