@@ -29,6 +29,8 @@ int RunCalibrateRadial(int argc, char** argv) {
   CommonFlags flags;
   AddCommonFlags(app, flags);
   AnchorInputs inputs;
+  inputs.every = 10;  // the trend wants anchors along the drive, not every frame: each run is
+                      // one anchoring of the drive
   RadialCalibrationOptions options;
   std::string out_dir, vo_out, origin_text, db_path, term = "k1";
   app.add_option("--drive", inputs.drive_dir, "Drive whose camera is calibrated")->required();
