@@ -4,12 +4,14 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <limits>
+#include <optional>
+#include <utility>
 
 #include <spdlog/spdlog.h>
 
 #include "epiloc/anchor/structure_sift.h"
 #include "epiloc/core/error.h"
+#include "epiloc/core/statistics.h"
 #include "epiloc/io/drive.h"
 
 namespace epiloc {
@@ -37,6 +39,17 @@ const char* RadialTermName(RadialCalibrationOptions::Term term) {
   return term == RadialCalibrationOptions::Term::kK1 ? "k1" : "k2";
 }
 
+namespace {
+
+// Whether run `a` is closer to no trend than run `b` (a run without a trend is never closer).
+bool CloserToNoTrend(const RadialCalibrationRun& a, const RadialCalibrationRun* b) {
+  if (!a.trend) return false;
+  return b == nullptr || !b->trend ||
+         std::abs(a.trend->percent_per_100m) < std::abs(b->trend->percent_per_100m);
+}
+
+}  // namespace
+
 RadialCalibrationResult SearchRadialTerm(
     double calibrated_term,
     const RadialCalibrationOptions& options,
@@ -58,7 +71,7 @@ RadialCalibrationResult SearchRadialTerm(
       break;
     }
     const int index = static_cast<int>(result.runs.size()) - 1;
-    if (result.best_run < 0 || std::abs(trend_of(run)) < std::abs(trend_of(result.runs[result.best_run]))) {
+    if (CloserToNoTrend(run, result.best_run < 0 ? nullptr : &result.runs[result.best_run])) {
       result.best_run = index;
     }
     if (std::abs(trend_of(run)) <= options.tolerance_percent_per_100m) {
@@ -102,7 +115,7 @@ RadialCalibrationResult CalibrateRadialTerm(
     const AnchorInputs& inputs,
     const RadialCalibrationOptions& options,
     const std::string& work_dir,
-    const std::function<void(const RadialCalibrationRun&, const VoResult&)>& on_run,
+    const std::function<void(const RadialCalibrationRun&)>& on_run,
     const ProgressCallback& progress) {
   options.Check();
   inputs.Check();
@@ -110,6 +123,7 @@ RadialCalibrationResult CalibrateRadialTerm(
   const int k = RadialTermIndex(options.term);
   std::filesystem::create_directories(work_dir);
   int runs_done = 0;
+  std::optional<std::pair<RadialCalibrationRun, VoResult>> best;  // closest to no trend, its VO
   const auto measure = [&](double term) {
     const auto start = std::chrono::steady_clock::now();
     Drive candidate = drive;
@@ -140,11 +154,7 @@ RadialCalibrationResult CalibrateRadialTerm(
       ++run.ok_anchors;
       if (std::isfinite(a.residual_m)) residuals.push_back(a.residual_m);
     }
-    if (!residuals.empty()) {
-      std::nth_element(residuals.begin(), residuals.begin() + residuals.size() / 2,
-                       residuals.end());
-      run.median_residual_m = residuals[residuals.size() / 2];
-    }
+    run.median_residual_m = UpperMedian(std::move(residuals));
     run.trend = ScaleTrendOfAnchors(anchors, [&vo](frame_t f) { return vo.SegmentOf(f); });
     if (!run.trend) {
       run.message = fmt::format("{} of {} anchors ok, fewer than 3 or within 10 m",
@@ -166,13 +176,15 @@ RadialCalibrationResult CalibrateRadialTerm(
       spdlog::info("{} = {:+.4f}: {} ({:.0f} s)", RadialTermName(options.term), term,
                    run.message, run.seconds);
     }
-    if (on_run) on_run(run, vo_result);
+    if (CloserToNoTrend(run, best ? &best->first : nullptr)) best.emplace(run, vo_result);
+    if (on_run) on_run(run);
     if (progress) progress(runs_done, options.max_runs);
     return run;
   };
   RadialCalibrationResult result = SearchRadialTerm(drive.camera.distortion[k], options, measure);
   result.camera = drive.camera;
   result.camera.distortion[k] = result.term;
+  if (best) result.vo = std::move(best->second);
   return result;
 }
 

@@ -1,10 +1,7 @@
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
 #include <vector>
-
-#include <spdlog/spdlog.h>
 
 #include "cli_common.h"
 #include "epiloc/anchor/map_sidecar.h"
@@ -114,18 +111,12 @@ int RunCalibrateRadial(int argc, char** argv) {
     }
     csv.Close();
   };
-  VoResult best_vo;
-  double best_abs_trend = INFINITY;
   Progress progress("calibrate-radial", options.max_runs);
   const RadialCalibrationResult result = CalibrateRadialTerm(
       inputs, options, work_dir,
-      [&](const RadialCalibrationRun& run, const VoResult& vo) {
+      [&](const RadialCalibrationRun& run) {
         runs.push_back(run);
         write_table();
-        if (run.trend && std::abs(run.trend->percent_per_100m) < best_abs_trend) {
-          best_abs_trend = std::abs(run.trend->percent_per_100m);
-          best_vo = vo;
-        }
       },
       progress.Callback());
   progress.Finish();
@@ -150,8 +141,8 @@ int RunCalibrateRadial(int argc, char** argv) {
   drive.camera = result.camera;
   WriteDrive(drive, out_dir);
   if (!vo_out.empty()) {
-    WriteVoTrajectory(best_vo, vo_out, drive.name, std::filesystem::absolute(out_dir).string());
-    WriteVoPoints(best_vo.points, VoPointsPath(vo_out));
+    WriteVoTrajectory(result.vo, vo_out, drive.name, std::filesystem::absolute(out_dir).string());
+    WriteVoPoints(result.vo.points, VoPointsPath(vo_out));
   }
   std::printf("%s: %s = %+.4f (was %+.4f), the VO's scale within %.1f %% per 100 m (%+.1f)\n",
               out_dir.c_str(), term.c_str(), result.term, calibrated,

@@ -11,6 +11,17 @@
 namespace epiloc {
 namespace {
 
+// An ok anchor of `frame` with its camera at `centre` (map) and the VO's scale there.
+AnchorResult OkAnchor(frame_t frame, const Eigen::Vector3d& centre, double scale_m_per_unit) {
+  AnchorResult a;
+  a.frame = frame;
+  a.status = AnchorStatus::kOk;
+  a.has_pose = true;
+  a.map_from_cam.translation = centre;
+  a.scale_m_per_unit = scale_m_per_unit;
+  return a;
+}
+
 // The VO's scale trend from the anchors: ok anchors 10 m apart on an L-shaped path (the distance
 // is the travelled one, not the straight line), scales exp(-0.002 x): -20 % per 100 m exactly.
 // Rejected anchors, even with wild scales, and frames without a pose do not count; fewer than
@@ -18,15 +29,10 @@ namespace {
 TEST(StructureAnchorTrend, ScaleTrendOfAnchorsIsTheSlopeOfLogScaleOverTheDistanceTravelled) {
   AnchorDriveResult result;
   for (int i = 0; i < 8; ++i) {
-    AnchorResult a;
-    a.frame = 10 * i;
-    a.status = AnchorStatus::kOk;
-    a.has_pose = true;
     const double x = 10.0 * i;  // 40 m east, then 30 m north
-    a.map_from_cam.translation =
-        i <= 4 ? Eigen::Vector3d(x, 0.0, 2.0) : Eigen::Vector3d(40.0, x - 40.0, 2.0);
-    a.scale_m_per_unit = 1.4 * std::exp(-0.002 * x);
-    result.frames.push_back(a);
+    result.frames.push_back(OkAnchor(
+        10 * i, i <= 4 ? Eigen::Vector3d(x, 0.0, 2.0) : Eigen::Vector3d(40.0, x - 40.0, 2.0),
+        1.4 * std::exp(-0.002 * x)));
   }
   result.frames[2].status = AnchorStatus::kRejected;
   result.frames[2].scale_m_per_unit = 9.0;
@@ -65,14 +71,12 @@ TEST(StructureAnchorTrend, ScaleTrendOfAnchorsIsTheSlopeOfLogScaleOverTheDistanc
 TEST(StructureAnchorTrend, EachVoSegmentKeepsItsOwnScale) {
   AnchorDriveResult result;
   for (int i = 0; i < 9; ++i) {
-    AnchorResult a;
-    a.frame = 10 * i;
-    a.status = AnchorStatus::kOk;
-    a.has_pose = true;
     const double x = 10.0 * i;
-    a.map_from_cam.translation = Eigen::Vector3d(x, 0.0, 2.0);
-    a.scale_m_per_unit = (i < 4 ? 1.4 : i < 8 ? 0.84 : 3.0) * std::exp(-0.002 * x);
-    result.frames.push_back(a);
+    result.frames.push_back(OkAnchor(10 * i, Eigen::Vector3d(x, 0.0, 2.0),
+                                     (i < 4   ? 1.4
+                                      : i < 8 ? 0.84
+                                              : 3.0) *
+                                         std::exp(-0.002 * x)));
   }
   const auto segment_of = [](frame_t f) { return f < 40 ? 0 : f < 80 ? 1 : 2; };
   AnchorDriveResult two_segments = result;

@@ -77,6 +77,7 @@ struct RadialCalibrationResult {
   int best_run = -1;       // index into runs; -1 when no run measured a trend
   std::vector<RadialCalibrationRun> runs;
   std::string message;     // why not converged
+  VoResult vo;             // CalibrateRadialTerm: the best run's VO (empty when none)
 };
 
 // The root search alone, on any measurement of the trend (`measure(term)`, which returns the run
@@ -91,14 +92,14 @@ RadialCalibrationResult SearchRadialTerm(
 // Runs the search on a drive (inputs.drive_dir: its frames, GNSS and camera; inputs.cloud_path
 // and map_origin: the map; inputs.frames / every: the anchored frames; inputs.vo_path unused).
 // Each run's drive (the camera with the run's term) is written to `work_dir`/run_N, which the
-// SIFT structure reads its calibration from. `on_run` (may be null) gets each run as it is done,
-// with its VO (e.g. to keep the best run's). Throws Error as RunVisualOdometry and
+// SIFT structure reads its calibration from. `on_run` (may be null) gets each run as it is done.
+// The result keeps the best run's VO. Throws Error as RunVisualOdometry and
 // AnchorDriveByStructure do.
 RadialCalibrationResult CalibrateRadialTerm(
     const AnchorInputs& inputs,
     const RadialCalibrationOptions& options,
     const std::string& work_dir,
-    const std::function<void(const RadialCalibrationRun&, const VoResult&)>& on_run = nullptr,
+    const std::function<void(const RadialCalibrationRun&)>& on_run = nullptr,
     const ProgressCallback& progress = nullptr);
 
 }  // namespace epiloc
