@@ -97,6 +97,8 @@ void StructureAnchorOptions::Check() const {
                "structure anchor: consensus_radius_m must be >= 0");
   EPILOC_CHECK(min_observations >= 2, "structure anchor: min_observations must be >= 2");
   EPILOC_CHECK(max_point_range_m > 0, "structure anchor: max_point_range_m must be > 0");
+  EPILOC_CHECK(min_parallax_deg >= 0 && min_parallax_deg < 90,
+               "structure anchor: min_parallax_deg must be in [0, 90)");
   EPILOC_CHECK(max_points >= registration.min_points,
                "structure anchor: max_points must be >= the registration's min_points");
   EPILOC_CHECK(map_voxel_m >= 0, "structure anchor: map_voxel_m must be >= 0");
@@ -320,7 +322,11 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
     std::vector<Eigen::Vector3d> points;
     StructureDrift drift;
   };
-  const auto select_points = [&](const std::vector<int>& poses, double max_range_vo) {
+  // The registration with the rotation held places the camera: its points need their depth
+  // (min_parallax_deg; a window with too few such points keeps them all).
+  const bool placing = restart != nullptr && restart->hold_rotation;
+  const auto select_with = [&](const std::vector<int>& poses, double max_range_vo,
+                               double min_parallax_deg) {
     const frame_t frame_lo = vo.poses[poses.front()].frame;
     const frame_t frame_hi = vo.poses[poses.back()].frame;
     Selected selected;
@@ -329,6 +335,7 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
     for (const VoPoint& p : vo.points) {
       if (p.segment != segment || p.observations < options.min_observations) continue;
       if (p.last_frame < frame_lo || p.first_frame > frame_hi) continue;
+      if (p.parallax_deg < min_parallax_deg) continue;  // NaN (not known): kept
       for (const int j : poses) {
         if ((p.point_in_world - vo.poses[j].world_from_cam.translation).norm() <= max_range_vo) {
           selected.points.push_back(p.point_in_world);
@@ -351,6 +358,13 @@ AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* r
       selected = std::move(kept);
     }
     return selected;
+  };
+  const auto select_points = [&](const std::vector<int>& poses, double max_range_vo) {
+    if (placing && options.min_parallax_deg > 0.0) {
+      Selected deep = select_with(poses, max_range_vo, options.min_parallax_deg);
+      if (static_cast<int>(deep.points.size()) >= options.registration.min_points) return deep;
+    }
+    return select_with(poses, max_range_vo, 0.0);
   };
   const Selected structure = select_points(window, options.max_point_range_m / seed.scale);
   const std::vector<Eigen::Vector3d>& points = structure.points;

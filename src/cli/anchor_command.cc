@@ -345,6 +345,11 @@ int RunAnchor(int argc, char** argv) {
   app.add_option("--max-point-range", structure.max_point_range_m,
                  "structure: VO points farther from the window's cameras are not used, metres")
       ->capture_default_str();
+  app.add_option("--min-parallax", structure.min_parallax_deg,
+                 "structure: with --rotation-consensus, the registration that places the camera "
+                 "(rotation held) leaves out the VO points whose first and last rays meet at a "
+                 "smaller angle (their depth is the least certain), degrees")
+      ->capture_default_str();
   app.add_option("--max-points", structure.max_points, "structure: VO points per window at most")
       ->capture_default_str();
   app.add_option("--map-voxel", structure.map_voxel_m,

@@ -372,9 +372,26 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   // 0.066 m and 0.094 deg; dense map 42 of 42, 2 deg grade 42 of 42 (within 0.100 m), sparse map
   // 25 of 42 (within 0.056 m). With the consensus placement (StructureAnchorOptions::
   // consensus_placement, the same day): the ok anchors within 0.062 / 0.051 / 0.070 / 0.064 m.
+  // With the placing registration's parallax floor (StructureAnchorOptions::min_parallax_deg,
+  // 2026-12-06, fifth session): 41 of 42 ok within 0.030 m and 0.094 deg; every anchor median
+  // 0.023 m, max 0.031 m (0.048 / 0.075 m without); the dense map 0.044 m, 2 deg grade 0.037 m,
+  // sparse map 0.047 m (31 ok). The position target (0.05 m) is met on all four maps.
   EXPECT_GE(e.ok * 10, e.total * 9);
-  EXPECT_LE(e.max_horizontal_m, 0.1);
+  EXPECT_LE(e.max_horizontal_m, 0.05);
+  EXPECT_LE(max_h, 0.05);
   EXPECT_LE(e.max_rotation_deg, 0.15);
+
+  // Without the floor the thin-parallax points' depths push every anchor ahead along the road
+  // (the VO's orientations are a few hundredths of a degree off from frame to frame; with the
+  // true poses as the VO the anchors are within 0.02 m): along-road median +0.04 m.
+  StructureAnchorOptions every_point = QueryOptions();
+  every_point.min_parallax_deg = 0.0;
+  const Errors f = Compare(AnchorDriveByStructure(QueryInputs(world), sift, every_point), query,
+                           EnuFrame(SynthOrigin()));
+  PrintPosed("15 Hz query, no parallax floor", f);
+  EXPECT_GT(Median(f.along_m), 0.025);
+  EXPECT_LT(std::abs(Median(e.along_m)), 0.015);
+  EXPECT_GT(Max(f.posed_horizontal_m), max_h);
 
   // The same structure against a denser map of the same world: a scan every 2.5 m instead of
   // 10, 128 beams instead of 64, all around instead of the forward half (`synth --lidar-spacing
@@ -410,11 +427,11 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   // target (0.05 m) missed by 1 mm at the worst anchor; on KITTI the same pass lowers the worst
   // ok anchor 0.19-0.41 -> 0.14-0.31 m (StructureAnchorOptions::consensus_placement).
   EXPECT_LE(Median(d.posed_horizontal_m), 0.04);
-  EXPECT_LE(dense_max_h, 0.055);
+  EXPECT_LE(dense_max_h, 0.05);
   EXPECT_LE(Median(d.posed_rotation_deg), 0.1);
   EXPECT_LE(dense_max_r, 0.15);
   EXPECT_GE(d.ok * 10, d.total * 9);
-  EXPECT_LE(d.max_horizontal_m, 0.1);
+  EXPECT_LE(d.max_horizontal_m, 0.05);
 
   // The same street on a 2 degree grade (3.5 %), the same frames and structure. Measured
   // (2026-11-28): 21 of 42 ok, within 0.063 m and 0.094 deg; every anchor: median 0.055 m, max
@@ -438,11 +455,11 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   PrintPosed("2 deg grade", g);
   EXPECT_LE(Median(g.posed_horizontal_m), 0.08);
   EXPECT_LE(Median(g.posed_rotation_deg), 0.1);
-  EXPECT_LE(Max(g.posed_horizontal_m), 0.15);
+  EXPECT_LE(Max(g.posed_horizontal_m), 0.05);
   EXPECT_LE(Max(g.posed_rotation_deg), 0.15);
   // With the graded profile: 33 of 42 ok (30 before); with the ok claim at 0.3 m, 42.
   EXPECT_GE(g.ok * 10, g.total * 9);
-  EXPECT_LE(g.max_horizontal_m, 0.1);
+  EXPECT_LE(g.max_horizontal_m, 0.05);
 
   // A sparser map of the same world: a scan every 20 m instead of 10, 32 beams instead of 64.
   // Few of its points lie on surfaces facing along the road, and a move of the fit along it
@@ -455,9 +472,9 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   ASSERT_EQ(sp.posed, sp.total);
   PrintPosed("sparse map", sp);
   EXPECT_LE(Median(sp.posed_horizontal_m), 0.06);
-  EXPECT_LE(Max(sp.posed_horizontal_m), 0.2);
+  EXPECT_LE(Max(sp.posed_horizontal_m), 0.05);
   EXPECT_GE(sp.ok * 2, sp.total);
-  EXPECT_LE(sp.max_horizontal_m, 0.1);
+  EXPECT_LE(sp.max_horizontal_m, 0.05);
 }
 
 // Six anchors 5 m apart along a VO trajectory scaled 2x into the map: with exact similarities
@@ -787,6 +804,11 @@ TEST(StructureAnchor, FramesWithoutVoPoseAreLostAndBadInputThrows) {
   StructureAnchorOptions negative_radius;
   negative_radius.consensus_radius_m = -0.1;
   ExpectError([&] { negative_radius.Check(); }, {"consensus_radius_m must be >= 0"});
+  for (const double angle : {-1.0, 90.0, std::nan("")}) {
+    StructureAnchorOptions bad_parallax;
+    bad_parallax.min_parallax_deg = angle;
+    ExpectError([&] { bad_parallax.Check(); }, {"min_parallax_deg must be in [0, 90)"});
+  }
   for (const double radius : {0.0, -40.0, std::nan("")}) {
     StructureAnchorOptions no_placement_radius;
     no_placement_radius.placement_rotation_radius_m = radius;

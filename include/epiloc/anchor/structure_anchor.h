@@ -87,6 +87,20 @@ struct StructureAnchorOptions {
   bool seed_grade = true;
   int min_observations = 3;                   // VO points seen by fewer keyframes are not used
   double max_point_range_m = 35.0;  // points farther from every window camera are not used
+  // The registration that places the camera (the rotation consensus's, with the rotation held)
+  // uses only the points whose rays from their first and last observing camera meet at this
+  // angle at least (VoPoint::parallax_deg; unknown, NaN: used); the registrations that give the
+  // rotations use them all. Rays alpha apart with a relative direction error delta put a point
+  // off by about delta / alpha of its depth, not in its bearing: the far, thin-parallax points
+  // fix the rotation, but on the surfaces that face the road, which fix the camera along it,
+  // their depth errors move it. The error is the VO's frame-to-frame orientation (synthetic
+  // street 0.02-0.07 deg, KITTI up to 0.15 deg per two frames in a turn); at the SIFT
+  // triangulation's floor (0.75 deg) 0.03 deg is 4 % of a point's depth, at 2 deg 1.5 %.
+  // Synthetic 15 Hz street, SIFT structure: every anchor 0.03-0.055 m ahead along the road
+  // without (0.02 m with the true poses as the VO), within 0.03 m with it; KITTI, KLT points
+  // (the VO's own floor is 1 deg): unchanged within 0.015 m. Without the rotation consensus
+  // there is no such registration, and the floor does not apply.
+  double min_parallax_deg = 2.0;
   int max_points = 4000;            // at most this many points (evenly subsampled)
   double map_voxel_m = 0.2;         // the map is voxel-filtered to this before the kd-tree (0: no)
   double map_margin_m = 6.0;        // map points farther from the seeded structure's bounds: cut
