@@ -149,6 +149,29 @@ TEST(StructureAnchor, AnchorsSyntheticQueryFromItsOwnStructure) {
   }
   EXPECT_LE(e.max_across_m, 0.6);
   EXPECT_LE(e.max_rotation_posed_deg, 1.3);
+
+  // The placing registration's parallax floor (StructureAnchorOptions::min_parallax_deg): the
+  // default leaves points out of it (the structure it reports is smaller somewhere); a floor no
+  // point meets leaves the window every point rather than no registration: the anchors are
+  // those without a floor.
+  StructureAnchorOptions no_floor = options;
+  no_floor.min_parallax_deg = 0.0;
+  StructureAnchorOptions unmet_floor = options;
+  unmet_floor.min_parallax_deg = 89.0;
+  const AnchorDriveResult without = AnchorDriveByStructure(inputs, vo, no_floor);
+  const AnchorDriveResult unmet = AnchorDriveByStructure(inputs, vo, unmet_floor);
+  ASSERT_EQ(without.frames.size(), result.frames.size());
+  ASSERT_EQ(unmet.frames.size(), result.frames.size());
+  int fewer = 0;
+  for (size_t k = 0; k < result.frames.size(); ++k) {
+    const AnchorResult& a = without.frames[k];
+    const AnchorResult& b = unmet.frames[k];
+    EXPECT_EQ(a.status, b.status) << a.frame;
+    EXPECT_EQ(a.structure_points, b.structure_points) << a.frame;
+    EXPECT_LT((a.map_from_cam.translation - b.map_from_cam.translation).norm(), 1e-9) << a.frame;
+    fewer += result.frames[k].structure_points < a.structure_points ? 1 : 0;
+  }
+  EXPECT_GT(fewer, 0);
 }
 
 double Median(std::vector<double> v) {
