@@ -86,5 +86,31 @@ void OrientByConsensus(const DriveAnchoring& run,
                        const std::vector<std::optional<Eigen::Quaterniond>>& orientations,
                        AnchorDriveResult* out);
 
+// The map bundle (StructureAnchorOptions::map_bundle; structure_bundle.cc): the cameras of
+// anchors' windows and the points they saw (VoPoint::seen), placed by the anchors' implied
+// similarities, adjusted together: the sightings' reprojection errors, the points' distances
+// from the map's local planes and each anchor's centre held where it was placed.
+struct MapBundleResult {
+  bool success = false;
+  Eigen::Quaterniond map_from_cam = Eigen::Quaterniond::Identity();  // the anchor's camera
+  int cameras = 0;
+  int points = 0;
+  int points_on_map = 0;  // with a plane residual at the last distance
+  int iterations = 0;
+};
+// For the results `ks` of a run (run.indices[k]) with their anchors (one per k), adjusted
+// together: the cameras within bundle_window_m / 2 of any of them, each anchor's centre held.
+// One result per k; not successful without a pose, sightings, a map or enough points on it, or
+// in another segment than the first posed one.
+std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
+                                                const std::vector<size_t>& ks,
+                                                const std::vector<AnchorResult>& anchors);
+// The same for the `k`th result alone.
+MapBundleResult AdjustWindowToMap(const DriveAnchoring& run, size_t k, const AnchorResult& a);
+// Last: the posed anchors of `out` in chunks (consecutive, one segment, within bundle_chunk_m of
+// the chunk's first), each chunk adjusted together; each anchor takes its camera's rotation, its
+// centre kept.
+void RefineByMapBundle(const DriveAnchoring& run, AnchorDriveResult* out);
+
 }  // namespace structure_internal
 }  // namespace epiloc

@@ -60,6 +60,7 @@ struct Seen {
   frame_t first = kInvalidFrame, last = kInvalidFrame;
   Eigen::Vector3d first_centre = Eigen::Vector3d::Zero(), last_centre = Eigen::Vector3d::Zero();
   int observations = 0;
+  std::vector<VoObservation> seen;
 };
 
 constexpr double kMinSpreadM = 5.0;  // a shorter segment's scale would be the GNSS noise
@@ -163,11 +164,24 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
       return Eigen::Vector3d(level.transpose() * x / *scale + first);
     };
     std::map<int64_t, Seen> seen;
+    std::map<drive_t, Camera> cameras;
+    for (const DbDrive& d : db.ReadDrives())
+      cameras[d.drive_id] = db.ReadCamera(d.camera_id).camera;
     for (const DbFrame& frame : db.ReadFrames()) {
       ++sums.frames;
       const Eigen::Vector3d centre = to_vo(frame.center_in_enu);
+      const Camera& camera = cameras.at(frame.drive_id);
+      out.observation_focal_px = camera.fx;
+      const FeatureKeypoints keypoints = db.ReadKeypoints(frame.image_id);
       for (const DbFramePoint& p : db.ReadFramePoints(frame.image_id)) {
         Seen& s = seen[p.point_id];
+        if (p.feature_index >= 0 && p.feature_index < keypoints.rows()) {
+          VoObservation o;
+          o.frame = frame.frame;
+          o.normalized =
+              camera.Unproject(keypoints.row(p.feature_index).head<2>().transpose().cast<double>());
+          s.seen.push_back(o);
+        }
         if (s.observations == 0) {
           s.position = to_vo(p.position_in_enu);
           s.first = frame.frame;
@@ -186,6 +200,7 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
       point.last_frame = s.last;
       point.observations = s.observations;
       point.parallax_deg = ParallaxDeg(s.position, s.first_centre, s.last_centre);
+      point.seen = s.seen;
       out.points.push_back(point);
     }
     sums.points += static_cast<int64_t>(seen.size());

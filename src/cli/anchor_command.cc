@@ -350,6 +350,15 @@ int RunAnchor(int argc, char** argv) {
                  "(rotation held) leaves out the VO points whose first and last rays meet at a "
                  "smaller angle (their depth is the least certain), degrees")
       ->capture_default_str();
+  app.add_option("--map-bundle", structure.map_bundle,
+                 "structure: last, where the structure keeps its sightings (--structure sift), "
+                 "the cameras around the anchors and the points they saw adjusted to the images "
+                 "and the map's planes together; each anchor takes its camera's rotation from it")
+      ->capture_default_str();
+  app.add_option("--bundle-window", structure.bundle_window_m,
+                 "structure: the map bundle takes the cameras within half this road length of "
+                 "an anchor, metres")
+      ->capture_default_str();
   app.add_option("--max-points", structure.max_points, "structure: VO points per window at most")
       ->capture_default_str();
   app.add_option("--map-voxel", structure.map_voxel_m,

@@ -386,7 +386,9 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   EXPECT_LE(Median(e.posed_horizontal_m), 0.05);
   EXPECT_LE(Median(e.posed_rotation_deg), 0.1);
   EXPECT_LE(max_h, 0.15);
-  EXPECT_LE(max_r, 0.15);
+  // The rotation target (0.1 deg) on every anchor since the map bundle
+  // (StructureAnchorOptions::map_bundle, 2026-12-06, sixth session): 0.094 -> 0.043 deg.
+  EXPECT_LE(max_r, 0.1);
   // What is called ok is right, and so is a good share of the anchors. Since the along-road
   // profile also grades the points' costs (StructureRegistration::along_ambiguity_m,
   // 2026-11-28, fourth session): 37 of 42 ok (29 before), within 0.059 m and 0.095 deg. With the
@@ -401,7 +403,7 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   EXPECT_GE(e.ok * 10, e.total * 9);
   EXPECT_LE(e.max_horizontal_m, 0.05);
   EXPECT_LE(max_h, 0.05);
-  EXPECT_LE(e.max_rotation_deg, 0.15);
+  EXPECT_LE(e.max_rotation_deg, 0.1);
 
   // Without the floor the thin-parallax points' depths push every anchor ahead along the road
   // (the VO's orientations are a few hundredths of a degree off from frame to frame; with the
@@ -451,7 +453,8 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   EXPECT_LE(Median(d.posed_horizontal_m), 0.04);
   EXPECT_LE(dense_max_h, 0.05);
   EXPECT_LE(Median(d.posed_rotation_deg), 0.1);
-  EXPECT_LE(dense_max_r, 0.15);
+  // With the map bundle: rotation max 0.101 -> 0.045 deg.
+  EXPECT_LE(dense_max_r, 0.1);
   EXPECT_GE(d.ok * 10, d.total * 9);
   EXPECT_LE(d.max_horizontal_m, 0.05);
 
@@ -478,7 +481,7 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   EXPECT_LE(Median(g.posed_horizontal_m), 0.08);
   EXPECT_LE(Median(g.posed_rotation_deg), 0.1);
   EXPECT_LE(Max(g.posed_horizontal_m), 0.05);
-  EXPECT_LE(Max(g.posed_rotation_deg), 0.15);
+  EXPECT_LE(Max(g.posed_rotation_deg), 0.1);
   // With the graded profile: 33 of 42 ok (30 before); with the ok claim at 0.3 m, 42.
   EXPECT_GE(g.ok * 10, g.total * 9);
   EXPECT_LE(g.max_horizontal_m, 0.05);
@@ -495,6 +498,10 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   PrintPosed("sparse map", sp);
   EXPECT_LE(Median(sp.posed_horizontal_m), 0.06);
   EXPECT_LE(Max(sp.posed_horizontal_m), 0.05);
+  // With the map bundle (2026-12-06, sixth session): rotation median 0.120 -> 0.054 deg, max
+  // 0.169 -> 0.080 deg: the VO's structure turned against its cameras (mostly roll) and the
+  // sparse map's own turn no longer reach the camera (README "The map bundle").
+  EXPECT_LE(Max(sp.posed_rotation_deg), 0.1);
   EXPECT_GE(sp.ok * 2, sp.total);
   EXPECT_LE(sp.max_horizontal_m, 0.05);
 }

@@ -117,6 +117,13 @@ struct VoSummary {
   double frames_per_s() const { return seconds > 0.0 ? frames / seconds : 0.0; }
 };
 
+// One sighting of a VoPoint: the frame and the point's normalised image coordinates there (x/z,
+// y/z of the distortion-free ray).
+struct VoObservation {
+  frame_t frame = kInvalidFrame;
+  Eigen::Vector2d normalized = Eigen::Vector2d::Zero();
+};
+
 // A triangulated 3-D point of the odometry's map, in the trajectory's world frame and units
 // (after the final bundle adjustment and the joins of segments).
 struct VoPoint {
@@ -127,6 +134,9 @@ struct VoPoint {
   int observations = 0;                 // keyframes that observed it
   double parallax_deg = 0.0;            // angle between the rays from the first and the last of
                                         // them (a small angle: an uncertain depth)
+  // Its sightings, where the structure keeps them (the anchors' SIFT structure,
+  // anchor/structure_sift.h); empty otherwise (the odometry's own points, files).
+  std::vector<VoObservation> seen;
 };
 
 // VoPoint::parallax_deg of a point seen from two camera centres: the angle between the rays,
