@@ -115,21 +115,7 @@ void StructureAnchorOptions::Check() const {
                "structure anchor: max_height_offset_m and max_tilt_deg must be > 0");
   EPILOC_CHECK(heading_error_deg >= 0, "structure anchor: heading_error_deg must be >= 0");
   EPILOC_CHECK(num_threads >= 1, "structure anchor: num_threads must be >= 1");
-  EPILOC_CHECK(std::isfinite(bundle_window_m) && bundle_window_m > 0,
-               "structure anchor: bundle_window_m must be > 0");
-  EPILOC_CHECK(bundle_iterations >= 1, "structure anchor: bundle_iterations must be >= 1");
-  EPILOC_CHECK(std::isfinite(bundle_chunk_m) && bundle_chunk_m >= 0,
-               "structure anchor: bundle_chunk_m must be >= 0");
-  EPILOC_CHECK(!bundle_distances_m.empty(), "structure anchor: bundle_distances_m is empty");
-  for (const double d : bundle_distances_m) {
-    EPILOC_CHECK(std::isfinite(d) && d > 0, "structure anchor: bundle_distances_m must be > 0");
-  }
-  EPILOC_CHECK(std::isfinite(bundle_plane_sigma_m) && bundle_plane_sigma_m > 0,
-               "structure anchor: bundle_plane_sigma_m must be > 0");
-  EPILOC_CHECK(std::isfinite(bundle_huber_px) && bundle_huber_px > 0,
-               "structure anchor: bundle_huber_px must be > 0");
-  EPILOC_CHECK(std::isfinite(bundle_centre_sigma_m) && bundle_centre_sigma_m > 0,
-               "structure anchor: bundle_centre_sigma_m must be > 0");
+  structure_internal::CheckMapBundleOptions(*this);
 }
 
 namespace {

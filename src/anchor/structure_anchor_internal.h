@@ -98,6 +98,8 @@ struct MapBundleResult {
   int points_on_map = 0;  // with a plane residual at the last distance
   int iterations = 0;
 };
+// Throws Error naming the first invalid map_bundle option (StructureAnchorOptions::Check).
+void CheckMapBundleOptions(const StructureAnchorOptions& options);
 // For the results `ks` of a run (run.indices[k]) with their anchors (one per k), adjusted
 // together: the cameras within bundle_window_m / 2 of any of them, each anchor's centre held.
 // One result per k; not successful without a pose, sightings, a map or enough points on it, or

@@ -1,16 +1,15 @@
-// The map bundle (StructureAnchorOptions::map_bundle): each posed anchor's window adjusted
-// against the images and the map at once. See RefineByMapBundle in structure_anchor_internal.h.
-#include <algorithm>
+// The map bundle (StructureAnchorOptions::map_bundle): the posed anchors' windows adjusted, a
+// chunk of anchors at a time, to the images and the map at once. See RefineByMapBundle in
+// structure_anchor_internal.h.
 #include <chrono>
 #include <cmath>
-#include <mutex>
 #include <unordered_map>
 
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
 #include <spdlog/spdlog.h>
 
-#include "epiloc/core/parallel.h"
+#include "epiloc/core/error.h"
 #include "structure_anchor_internal.h"
 
 namespace epiloc {
@@ -158,7 +157,6 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
   // The window: the segment's poses within bundle_window_m / 2 of an anchor's camera.
   const double half = 0.5 * options.bundle_window_m;
   std::unordered_map<frame_t, int> camera_of;  // drive frame -> index in `cameras`
-  std::unordered_map<int, int> camera_of_pose;
   std::vector<Pose6> cameras;
   for (size_t j = 0; j < vo.poses.size(); ++j) {
     const StampedPose& p = vo.poses[j];
@@ -167,10 +165,12 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
     const Eigen::Vector3d centre = sim * p.world_from_cam.translation;
     if (!near_an_anchor(centre, half)) continue;
     camera_of[p.frame] = static_cast<int>(cameras.size());
-    camera_of_pose[static_cast<int>(j)] = static_cast<int>(cameras.size());
     cameras.push_back(ToPose6(sim.rotation * p.world_from_cam.rotation, centre));
   }
   if (cameras.size() < 3) return results;
+  const auto anchor_camera = [&](const Anchored& a) -> Pose6& {
+    return cameras[static_cast<size_t>(camera_of.at(vo.poses[static_cast<size_t>(a.pose)].frame))];
+  };
 
   // The points the window's cameras saw twice or more, near an anchor's camera.
   struct Sighting {
@@ -236,8 +236,7 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
     for (const Anchored& a : anchored) {
       problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CentreCost, 3, 6>(
                                    new CentreCost(a.centre, options.bundle_centre_sigma_m)),
-                               nullptr,
-                               cameras[static_cast<size_t>(camera_of_pose.at(a.pose))].data());
+                               nullptr, anchor_camera(a).data());
     }
     ceres::Solver::Options solver;
     solver.linear_solver_type = ceres::SPARSE_SCHUR;
@@ -252,13 +251,31 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
   for (const Anchored& a : anchored) {
     MapBundleResult& r = results[a.result];
     r.success = true;
-    r.map_from_cam = MapFromCam(cameras[static_cast<size_t>(camera_of_pose.at(a.pose))]);
+    r.map_from_cam = MapFromCam(anchor_camera(a));
     r.cameras = static_cast<int>(cameras.size());
     r.points = static_cast<int>(points.size());
     r.points_on_map = on_planes;
     r.iterations = iterations;
   }
   return results;
+}
+
+void CheckMapBundleOptions(const StructureAnchorOptions& o) {
+  EPILOC_CHECK(std::isfinite(o.bundle_window_m) && o.bundle_window_m > 0,
+               "structure anchor: bundle_window_m must be > 0");
+  EPILOC_CHECK(o.bundle_iterations >= 1, "structure anchor: bundle_iterations must be >= 1");
+  EPILOC_CHECK(std::isfinite(o.bundle_chunk_m) && o.bundle_chunk_m >= 0,
+               "structure anchor: bundle_chunk_m must be >= 0");
+  EPILOC_CHECK(!o.bundle_distances_m.empty(), "structure anchor: bundle_distances_m is empty");
+  for (const double d : o.bundle_distances_m) {
+    EPILOC_CHECK(std::isfinite(d) && d > 0, "structure anchor: bundle_distances_m must be > 0");
+  }
+  EPILOC_CHECK(std::isfinite(o.bundle_plane_sigma_m) && o.bundle_plane_sigma_m > 0,
+               "structure anchor: bundle_plane_sigma_m must be > 0");
+  EPILOC_CHECK(std::isfinite(o.bundle_huber_px) && o.bundle_huber_px > 0,
+               "structure anchor: bundle_huber_px must be > 0");
+  EPILOC_CHECK(std::isfinite(o.bundle_centre_sigma_m) && o.bundle_centre_sigma_m > 0,
+               "structure anchor: bundle_centre_sigma_m must be > 0");
 }
 
 MapBundleResult AdjustWindowToMap(const DriveAnchoring& run, size_t k, const AnchorResult& a) {

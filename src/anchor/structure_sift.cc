@@ -192,7 +192,7 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
         ++s.observations;
       }
     }
-    for (const auto& [id, s] : seen) {
+    for (auto& [id, s] : seen) {
       VoPoint point;
       point.point_in_world = s.position;
       point.segment = segment;
@@ -200,7 +200,7 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
       point.last_frame = s.last;
       point.observations = s.observations;
       point.parallax_deg = ParallaxDeg(s.position, s.first_centre, s.last_centre);
-      point.seen = s.seen;
+      point.seen = std::move(s.seen);
       out.points.push_back(point);
     }
     sums.points += static_cast<int64_t>(seen.size());
