@@ -102,8 +102,10 @@ struct MapBundleResult {
 void CheckMapBundleOptions(const StructureAnchorOptions& options);
 // For the results `ks` of a run (run.indices[k]) with their anchors (one per k), adjusted
 // together: the cameras within bundle_window_m / 2 of any of them, each anchor's centre held.
-// One result per k; not successful without a pose, sightings, a map or enough points on it, or
-// in another segment than the first posed one.
+// Only the ok ones (status) place the window and hold the gauge; one that is not takes the
+// rotation of its frame's camera when the window holds it. One result per k; not successful
+// without a pose, sightings, a map or enough points on it, or in another segment than the first
+// ok one.
 std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
                                                 const std::vector<size_t>& ks,
                                                 const std::vector<AnchorResult>& anchors);

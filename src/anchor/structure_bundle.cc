@@ -123,7 +123,11 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
   for (size_t i = 0; i < ks.size(); ++i) {
     const int pose = run.pose_of[run.indices[ks[i]]];
     const AnchorResult& a = anchors[i];
-    if (pose < 0 || !a.has_pose) continue;
+    // Only an anchor called ok places the cameras and points around it and holds the gauge: a
+    // rejected one is rejected because its place is doubted (metres off on a street that repeats
+    // itself), and its similarity would bend the window between its neighbours (below: it takes
+    // its camera's rotation only).
+    if (pose < 0 || !a.has_pose || a.status != AnchorStatus::kOk) continue;
     const StampedPose& p = vo.poses[static_cast<size_t>(pose)];
     const int s = vo.SegmentOf(p.frame);
     if (segment == -2) segment = s;
@@ -247,6 +251,23 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
     ceres::Solve(solver, &problem, &summary);
     if (!summary.IsSolutionUsable()) return results;
     iterations += static_cast<int>(summary.iterations.size());
+  }
+  // An anchor not called ok takes the rotation of its frame's camera where the window holds it
+  // (the camera placed by the ok anchors around it, as its orientation was by their consensus);
+  // its centre, doubted, is its own and stays.
+  for (size_t i = 0; i < ks.size(); ++i) {
+    const int pose = run.pose_of[run.indices[ks[i]]];
+    const AnchorResult& a = anchors[i];
+    if (pose < 0 || !a.has_pose || a.status == AnchorStatus::kOk) continue;
+    const auto it = camera_of.find(vo.poses[static_cast<size_t>(pose)].frame);
+    if (it == camera_of.end()) continue;
+    MapBundleResult& r = results[i];
+    r.success = true;
+    r.map_from_cam = MapFromCam(cameras[static_cast<size_t>(it->second)]);
+    r.cameras = static_cast<int>(cameras.size());
+    r.points = static_cast<int>(points.size());
+    r.points_on_map = on_planes;
+    r.iterations = iterations;
   }
   for (const Anchored& a : anchored) {
     MapBundleResult& r = results[a.result];

@@ -168,20 +168,21 @@ struct StructureAnchorOptions {
   // Map bundle, after everything else (structure_bundle.cc): where the structure keeps its
   // sightings (the SIFT structure, VoPoint::seen; the VO's own points and other SLAM systems'
   // files do not), the posed anchors in chunks (consecutive, one segment, within bundle_chunk_m
-  // of the chunk's first) and for each chunk the cameras within bundle_window_m / 2 of any of its
-  // anchors and the points they saw twice or more, adjusted together: reprojection errors
-  // (pixels, Huber bundle_huber_px), the points' distances from the map's local planes within
-  // each of bundle_distances_m in turn (in units of bundle_plane_sigma_m, Huber 1), every
-  // anchor's centre held within bundle_centre_sigma_m of its placement (the gauge along the
-  // road, which a street's surfaces leave free). Each anchor takes its camera's rotation from the
-  // bundle; its centre, scale and flags are kept. Why: the registrations fit the structure's
-  // points to the map, and the structure triangulated along the VO's poses is turned against its
-  // cameras (synthetic street: up to 0.09 deg, mostly roll) and bent by the depths of its thin-
-  // parallax points; the bundle lets the images say where the points are and the map where they
-  // lie, and the camera follows its own sightings. The window is the anchors' (window_m); one
-  // chunk over many anchors, not one bundle per anchor, because each anchor's own window is
-  // one-sided at the drive's ends and its cameras' subsets (every 3rd camera, or 3000 of the
-  // 7600 points) turned the camera by 0.04 deg more: the rotation wants all the sightings.
+  // of the chunk's first; only those called ok place the window and hold the gauge, a rejected
+  // one is doubted and takes its camera's rotation only) and for each chunk the cameras within
+  // bundle_window_m / 2 of any of its anchors and the points they saw twice or more, adjusted
+  // together: reprojection errors (pixels, Huber bundle_huber_px), the points' distances from the
+  // map's local planes within each of bundle_distances_m in turn (in units of bundle_plane_sigma_m,
+  // Huber 1), every anchor's centre held within bundle_centre_sigma_m of its placement (the gauge
+  // along the road, which a street's surfaces leave free). Each anchor takes its camera's rotation
+  // from the bundle; its centre, scale and flags are kept. Why: the registrations fit the
+  // structure's points to the map, and the structure triangulated along the VO's poses is turned
+  // against its cameras (synthetic street: up to 0.09 deg, mostly roll) and bent by the depths of
+  // its thin- parallax points; the bundle lets the images say where the points are and the map
+  // where they lie, and the camera follows its own sightings. The window is the anchors'
+  // (window_m); one chunk over many anchors, not one bundle per anchor, because each anchor's own
+  // window is one-sided at the drive's ends and its cameras' subsets (every 3rd camera, or 3000 of
+  // the 7600 points) turned the camera by 0.04 deg more: the rotation wants all the sightings.
   // Synthetic 15 Hz street, the tests' / dense / 2 deg grade / sparse map: rotation max 0.094 /
   // 0.101 / 0.099 / 0.169 -> 0.043 / 0.045 / 0.040 / 0.080 deg; KITTI with the SIFT structure:
   // rotation max +0.02 to +0.05 deg (its yaw error is the truth's heading, README), positions
