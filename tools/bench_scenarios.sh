@@ -41,27 +41,9 @@ results="$cache/runs/table_input.tsv"
 : > "$results"
 suite_start=$(date +%s)
 
-say() { echo "[$(date +%H:%M:%S)] $*" | tee -a "$log" >&2; }
-
-# Runs a command quietly, its output appended to the suite log; on failure prints it and exits.
-quiet() {
-  if ! "$@" >> "$log" 2>&1; then
-    echo "bench_scenarios: failed: $*" >&2
-    tail -n 20 "$log" >&2
-    exit 1
-  fi
-}
-
-# A cached step: the directory (or file) $1 is made by the remaining command unless it exists;
-# the command writes into "$1.tmp" (removed first) which is renamed on success.
-cached() {
-  local target=$1
-  shift
-  [[ -e $target ]] && return 0
-  rm -rf "$target.tmp"
-  quiet "$@"
-  mv "$target.tmp" "$target"
-}
+bench_name=bench_scenarios
+# shellcheck source=tools/bench_lib.sh
+source tools/bench_lib.sh
 
 # localize + evaluate one run: localize_run NAME RUN DB QUERY_DIR [localize options...]
 localize_run() {
