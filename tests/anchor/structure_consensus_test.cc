@@ -60,6 +60,49 @@ TEST(StructureAnchor, NeighbourDisagreementFindsTheAnchorItsNeighboursPlaceElsew
   EXPECT_NEAR(*off[2], moved, 1e-9);
 }
 
+// Seven anchors 5 m apart; the neighbours of the middle one (exact) moved along the road by
+// -1, -0.6, 0, 0, +0.6, +1 m: their median places it where it is (no disagreement), but only two
+// of the six within a claim of 0.3 m: a third. Exact neighbours: all of them.
+TEST(StructureAnchor, NeighbourAgreementCountsThePlacementsWithinTheClaim) {
+  Similarity3 exact;
+  exact.scale = 2.0;
+  exact.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(1.1, Eigen::Vector3d::UnitZ()));
+  exact.translation = Eigen::Vector3d(4, 2, -1);
+  std::vector<PlacedAnchor> anchors;
+  for (int i = 0; i < 7; ++i) {
+    PlacedAnchor a;
+    a.map_from_world = exact;
+    a.vo_centre = Eigen::Vector3d(2.5 * i, 0.0, 0.0);
+    a.map_centre = exact * a.vo_centre;
+    anchors.push_back(a);
+  }
+  std::vector<std::optional<double>> share = NeighbourAgreement(anchors, 40.0, 0.3);
+  ASSERT_EQ(share.size(), anchors.size());
+  for (size_t i = 0; i < share.size(); ++i) {
+    ASSERT_TRUE(share[i].has_value()) << i;
+    EXPECT_DOUBLE_EQ(*share[i], 1.0) << i;
+  }
+  const Eigen::Vector3d along = exact.rotation * Eigen::Vector3d::UnitX();
+  const std::vector<double> moves = {-1.0, -0.6, 0.0, 0.0, 0.6, 1.0};
+  for (int i = 0, m = 0; i < 7; ++i) {
+    if (i == 3) continue;
+    anchors[static_cast<size_t>(i)].map_from_world.translation += moves[m] * along;
+    anchors[static_cast<size_t>(i)].map_centre += moves[m] * along;
+    ++m;
+  }
+  const std::vector<std::optional<double>> off = NeighbourDisagreement(anchors, 40.0);
+  ASSERT_TRUE(off[3].has_value());
+  EXPECT_NEAR(*off[3], 0.0, 1e-9);
+  share = NeighbourAgreement(anchors, 40.0, 0.3);
+  ASSERT_TRUE(share[3].has_value());
+  EXPECT_NEAR(*share[3], 2.0 / 6.0, 1e-12);
+  // Within a claim of 0.7 m: four of six.
+  share = NeighbourAgreement(anchors, 40.0, 0.7);
+  EXPECT_NEAR(*share[3], 4.0 / 6.0, 1e-12);
+  // Fewer than three neighbours: not judged.
+  EXPECT_FALSE(NeighbourAgreement(anchors, 12.0, 0.3)[0].has_value());
+}
+
 // The consensus placement: six anchors 2.5 m apart along a VO trajectory scaled 2x into the map,
 // one of them 1 m off along the road. Each is placed at the median of its neighbours'
 // placements, itself included: the exact ones where they are (the one moved similarity places

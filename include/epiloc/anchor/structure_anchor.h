@@ -287,6 +287,13 @@ struct PlacedAnchor {
 // (the principal axis of the neighbours' map centres without a path).
 std::vector<std::optional<double>> NeighbourDisagreement(const std::vector<PlacedAnchor>& anchors,
                                                          double window_m);
+// Per anchor, the share of those placements (the same neighbours) that lie within claim_m of its
+// map centre along the road; nullopt with fewer than three of them. A median that agrees with the
+// anchor says little where the placements scatter over metres (a street whose registrations have
+// several minima along it): most of them should agree.
+std::vector<std::optional<double>> NeighbourAgreement(const std::vector<PlacedAnchor>& anchors,
+                                                      double window_m,
+                                                      double claim_m);
 // Per anchor, the median (per axis) of the horizontal placements of its VO centre
 // (PlacedAnchor::Placing) by the anchors of its segment whose map centres lie within window_m / 2
 // of its own, itself included (StructureAnchorOptions::consensus_placement); nullopt with fewer
