@@ -252,6 +252,16 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
     if (!summary.IsSolutionUsable()) return results;
     iterations += static_cast<int>(summary.iterations.size());
   }
+  const auto adjusted = [&](const Pose6& camera) {
+    MapBundleResult r;
+    r.success = true;
+    r.map_from_cam = MapFromCam(camera);
+    r.cameras = static_cast<int>(cameras.size());
+    r.points = static_cast<int>(points.size());
+    r.points_on_map = on_planes;
+    r.iterations = iterations;
+    return r;
+  };
   // An anchor not called ok takes the rotation of its frame's camera where the window holds it
   // (the camera placed by the ok anchors around it, as its orientation was by their consensus);
   // its centre, doubted, is its own and stays.
@@ -261,23 +271,9 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
     if (pose < 0 || !a.has_pose || a.status == AnchorStatus::kOk) continue;
     const auto it = camera_of.find(vo.poses[static_cast<size_t>(pose)].frame);
     if (it == camera_of.end()) continue;
-    MapBundleResult& r = results[i];
-    r.success = true;
-    r.map_from_cam = MapFromCam(cameras[static_cast<size_t>(it->second)]);
-    r.cameras = static_cast<int>(cameras.size());
-    r.points = static_cast<int>(points.size());
-    r.points_on_map = on_planes;
-    r.iterations = iterations;
+    results[i] = adjusted(cameras[static_cast<size_t>(it->second)]);
   }
-  for (const Anchored& a : anchored) {
-    MapBundleResult& r = results[a.result];
-    r.success = true;
-    r.map_from_cam = MapFromCam(anchor_camera(a));
-    r.cameras = static_cast<int>(cameras.size());
-    r.points = static_cast<int>(points.size());
-    r.points_on_map = on_planes;
-    r.iterations = iterations;
-  }
+  for (const Anchored& a : anchored) results[a.result] = adjusted(anchor_camera(a));
   return results;
 }
 

@@ -290,8 +290,7 @@ void ApplyConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
 
 // An ok anchor whose neighbours' placements (itself left out) have their median beyond
 // 2 max_along_sigma_m of it along the road, or of which no more than half lie within that, is
-// not ok. Last: it judges the anchors as they are
-// written.
+// not ok. Last: it judges the anchors as they are written.
 void GateByNeighbours(const DriveAnchoring& run, AnchorDriveResult* out) {
   const StructureAnchorOptions& options = run.options;
   const VoStructure& vo = run.vo;
