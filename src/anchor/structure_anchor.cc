@@ -93,6 +93,9 @@ void StructureAnchorOptions::Check() const {
   EPILOC_CHECK(std::isfinite(window_m) && window_m > 0, "structure anchor: window_m must be > 0");
   EPILOC_CHECK(std::isfinite(placement_rotation_radius_m) && placement_rotation_radius_m > 0,
                "structure anchor: placement_rotation_radius_m must be > 0");
+  EPILOC_CHECK(exchange_rounds >= 0, "structure anchor: exchange_rounds must be >= 0");
+  EPILOC_CHECK(auto_min_ok_share >= 0 && auto_min_ok_share <= 1,
+               "structure anchor: auto_min_ok_share must be in [0, 1]");
   EPILOC_CHECK(std::isfinite(consensus_radius_m) && consensus_radius_m >= 0,
                "structure anchor: consensus_radius_m must be >= 0");
   EPILOC_CHECK(min_observations >= 2, "structure anchor: min_observations must be >= 2");
@@ -627,6 +630,12 @@ std::optional<VoScaleTrend> ScaleTrendOfAnchors(const AnchorDriveResult& result,
 
 namespace {
 
+int CountOk(const AnchorDriveResult& result) {
+  return static_cast<int>(
+      std::count_if(result.frames.begin(), result.frames.end(),
+                    [](const AnchorResult& a) { return a.status == AnchorStatus::kOk; }));
+}
+
 // AnchorDriveByStructure, and with `alternative`, AnchorDriveByStructureAuto.
 AnchorDriveResult AnchorByStructure(const AnchorInputs& inputs,
                                     const VoStructure& vo,
@@ -727,6 +736,7 @@ AnchorDriveResult AnchorByStructure(const AnchorInputs& inputs,
   out = first_pass({drive, indices, pose_of, timed, load, map_frame, options}, progress);
   // The passes after the first (structure_anchor.h, step 5).
   const auto passes = [&](const structure_internal::DriveAnchoring& run, AnchorDriveResult* r) {
+    if (options.exchange_rounds > 0) structure_internal::ExchangeFits(run, r);
     if (options.scale_drift == ScaleDriftModel::kAcrossAnchors) {
       structure_internal::ApplyDriftAcrossAnchors(run, r);
     }
@@ -744,35 +754,54 @@ AnchorDriveResult AnchorByStructure(const AnchorInputs& inputs,
                                                load,  map_frame, options};
   StructureChoice c;
   c.first_sigma_m = MedianAlongSigma(out);
+  // The alternative structure, built and on the drive's frames when first needed.
+  std::vector<int> alternative_pose_of;
+  std::optional<VoStructure> alternative_timed;
+  std::optional<structure_internal::DriveAnchoring> other_run;
+  const auto alternative_first_pass = [&]() {
+    c.alternative_tried = true;
+    alternative_timed = on_frames((*alternative)(), &alternative_pose_of);
+    other_run.emplace(structure_internal::DriveAnchoring{
+        drive, indices, alternative_pose_of, *alternative_timed, load, map_frame, options});
+    AnchorDriveResult other = first_pass(*other_run, nullptr);
+    c.alternative_sigma_m = MedianAlongSigma(other);
+    return other;
+  };
   if (alternative && c.first_sigma_m > options.max_along_sigma_m) {
     // `auto`: the alternative structure too where the first's anchors are not fixed along the
     // road. The first passes decide where their median along-road sigmas differ (the passes
     // then run once); equal medians (the sigma comes in steps of half the finest distance) tell
     // nothing, and the finished runs decide.
-    c.alternative_tried = true;
-    std::vector<int> alternative_pose_of;
-    const VoStructure alternative_timed = on_frames((*alternative)(), &alternative_pose_of);
-    const structure_internal::DriveAnchoring other_run{
-        drive, indices, alternative_pose_of, alternative_timed, load, map_frame, options};
-    AnchorDriveResult other = first_pass(other_run, nullptr);
-    c.alternative_sigma_m = MedianAlongSigma(other);
+    AnchorDriveResult other = alternative_first_pass();
     if (c.alternative_sigma_m == c.first_sigma_m) {
       c.decided_by_finished_runs = true;
       passes(run, &out);
-      passes(other_run, &other);
+      passes(*other_run, &other);
       c.first_sigma_m = MedianAlongSigma(out);
       c.alternative_sigma_m = MedianAlongSigma(other);
       c.alternative_kept = c.alternative_sigma_m < c.first_sigma_m;
     } else {
       c.alternative_kept = c.alternative_sigma_m < c.first_sigma_m;
-      passes(c.alternative_kept ? other_run : run, c.alternative_kept ? &other : &out);
+      passes(c.alternative_kept ? *other_run : run, c.alternative_kept ? &other : &out);
     }
     if (c.alternative_kept) out = std::move(other);
   } else {
     passes(run, &out);
+    c.first_ok = CountOk(out);
+    if (alternative &&
+        c.first_ok < options.auto_min_ok_share * static_cast<double>(indices.size())) {
+      // The first structure fixed the anchors in its first pass but too few are ok in the end:
+      // the alternative's finished run too, the one with more ok anchors kept.
+      c.decided_by_ok = true;
+      AnchorDriveResult other = alternative_first_pass();
+      passes(*other_run, &other);
+      c.alternative_ok = CountOk(other);
+      c.alternative_kept = c.alternative_ok > c.first_ok;
+      if (c.alternative_kept) out = std::move(other);
+    }
   }
   if (choice) *choice = c;
-  for (const AnchorResult& r : out.frames) out.num_ok += r.status == AnchorStatus::kOk ? 1 : 0;
+  out.num_ok = CountOk(out);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }

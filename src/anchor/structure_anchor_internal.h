@@ -68,6 +68,11 @@ std::optional<double> LeastSquaresSlope(const std::vector<Eigen::Vector2d>& xy,
 // second's drift from the first round's scales, registered from the fits of `out`.
 void ApplyDriftAcrossAnchors(const DriveAnchoring& run, AnchorDriveResult* out);
 
+// The fits' exchange (StructureAnchorOptions::exchange_rounds) over `out`, before the drift
+// pass: each posed anchor registered again from the similarities of its neighbours that fit
+// their own windows better and place its camera elsewhere; the fit with most inliers is kept.
+void ExchangeFits(const DriveAnchoring& run, AnchorDriveResult* out);
+
 // The passes after the drift pass, in this order (structure_passes.cc): the consensus pass
 // (StructureAnchorOptions::consensus_radius_m), the rotation consensus
 // (StructureAnchorOptions::rotation_consensus), then the neighbours' check of the ok anchors

@@ -25,6 +25,9 @@ namespace {
 // The consensus pass's note in the message of an anchor it registered again.
 constexpr const char* kConsensusNote = "re-registered from the consensus of its neighbours";
 
+// The start of the fits' exchange's note in the message of an anchor it registered again.
+constexpr const char* kExchangeNote = "registered from frame ";
+
 // A posed anchor of the consensus pass.
 struct Posed {
   size_t k;  // index into AnchorDriveResult::frames
@@ -99,9 +102,19 @@ std::vector<double> ScaleLevels(const StructureRegistrationOptions& registration
   return levels;
 }
 
+// Whether an anchor's scale lies within max_scale_change of its GNSS seed's, as an ok anchor's
+// must. A structure shrunk far below the seed's scale can put more of its points on the map's
+// surfaces than the right one (synthetic street, KLT points, a drive's last window: scale 0.72
+// times the seed's, 56 % of its points on the map against 51 %): the exchange neither offers nor
+// takes such a fit.
+bool ScaleAllowed(const AnchorResult& a, const StructureAnchorOptions& options) {
+  return a.seed_scale_m_per_unit > 0.0 &&
+         std::abs(a.scale_m_per_unit / a.seed_scale_m_per_unit - 1.0) <= options.max_scale_change;
+}
+
 // The anchors `redo` names (index into AnchorDriveResult::frames, restart) registered again, in
 // parallel; one that gets no pose keeps its fit. The consensus pass's note goes into the message
-// with `consensus_note`, and stays where the fit replaced carried it.
+// with `consensus_note`, and stays where the fit replaced carried it; so does the fits' exchange's.
 void RegisterAgain(const DriveAnchoring& run,
                    const std::vector<std::pair<size_t, Restart>>& redo,
                    bool consensus_note,
@@ -112,6 +125,14 @@ void RegisterAgain(const DriveAnchoring& run,
     if (!again.has_pose) return;
     const AnchorResult& before = out->frames[k];
     again.seconds += before.seconds;
+    // The exchange's note stays: the fit registered again came from that neighbour's.
+    const size_t exchanged = before.message.find(kExchangeNote);
+    if (exchanged != std::string::npos) {
+      const size_t end = before.message.find("; ", exchanged);
+      const std::string note = before.message.substr(
+          exchanged, end == std::string::npos ? std::string::npos : end - exchanged);
+      again.message = again.message.empty() ? note : again.message + "; " + note;
+    }
     if (consensus_note || before.message.find(kConsensusNote) != std::string::npos) {
       again.message =
           again.message.empty() ? kConsensusNote : again.message + "; " + kConsensusNote;
@@ -248,6 +269,92 @@ void RegisterWithDrift(const DriveAnchoring& run,
 }
 
 }  // namespace
+
+// The fits' exchange (StructureAnchorOptions::exchange_rounds).
+void ExchangeFits(const DriveAnchoring& run, AnchorDriveResult* out) {
+  const StructureAnchorOptions& options = run.options;
+  const std::vector<double> levels = ScaleLevels(options.registration);
+  // A neighbour's placement of the anchor's camera this far from its own is another basin: the
+  // consensus pass's radius of agreement (the fine levels' reach).
+  const double radius = options.consensus_radius_m;
+  constexpr size_t kMaxBasins = 2;  // the placements tried per anchor and round
+  for (int round = 0; round < options.exchange_rounds; ++round) {
+    const std::vector<Posed> posed = PosedAnchors(run.indices, run.pose_of, *out);
+    const std::vector<PlacedAnchor> placed = Place(posed, run.vo, *out);
+    struct Trial {
+      size_t k;       // index into out->frames
+      size_t source;  // index into posed
+      Restart restart;
+      AnchorResult result;
+    };
+    std::vector<Trial> trials;
+    for (size_t i = 0; i < posed.size(); ++i) {
+      const AnchorResult& own = out->frames[posed[i].k];
+      const bool own_allowed = ScaleAllowed(own, options);
+      // The neighbours that fit their own windows better at a scale the GNSS allows (any that
+      // does, when the anchor's own scale is not allowed), best first.
+      std::vector<size_t> better;
+      for (size_t j = 0; j < posed.size(); ++j) {
+        if (j == i || placed[j].segment != placed[i].segment) continue;
+        if (!ScaleAllowed(out->frames[posed[j].k], options)) continue;
+        if ((placed[j].map_centre - placed[i].map_centre).head<2>().norm() >
+            0.5 * options.window_m) {
+          continue;
+        }
+        if (!own_allowed || out->frames[posed[j].k].inlier_share > own.inlier_share) {
+          better.push_back(j);
+        }
+      }
+      std::sort(better.begin(), better.end(), [&](size_t a, size_t b) {
+        return out->frames[posed[a].k].inlier_share > out->frames[posed[b].k].inlier_share;
+      });
+      // One trial per basin they place the camera in, other than its own.
+      std::vector<Eigen::Vector2d> basins;
+      for (const size_t j : better) {
+        if (basins.size() == kMaxBasins) break;
+        const Eigen::Vector2d at = placed[j].Placing(placed[i]).head<2>();
+        if ((at - placed[i].map_centre.head<2>()).norm() <= radius) continue;
+        if (std::any_of(basins.begin(), basins.end(),
+                        [&](const Eigen::Vector2d& b) { return (at - b).norm() <= radius; })) {
+          continue;
+        }
+        basins.push_back(at);
+        const double drift = out->frames[posed[j].k].scale_drift_per_m;
+        trials.push_back({posed[i].k,
+                          j,
+                          {placed[j].map_from_world, std::isfinite(drift) ? drift : 0.0, levels},
+                          {}});
+      }
+    }
+    ParallelFor(static_cast<int64_t>(trials.size()), options.num_threads, [&](int64_t t) {
+      Trial& trial = trials[static_cast<size_t>(t)];
+      trial.result = AnchorOne(run, run.indices[trial.k], &trial.restart);
+    });
+    int changed = 0;
+    for (const Trial& trial : trials) {
+      AnchorResult& a = out->frames[trial.k];
+      const AnchorResult& b = trial.result;
+      a.seconds += b.seconds;
+      if (!b.has_pose || !ScaleAllowed(b, options)) continue;
+      if (ScaleAllowed(a, options) &&
+          (b.num_inliers < a.num_inliers ||
+           (b.num_inliers == a.num_inliers && !(b.residual_m < a.residual_m)))) {
+        continue;
+      }
+      const std::string note =
+          fmt::format("{}{}'s fit ({} of its points on the map against {})", kExchangeNote,
+                      out->frames[posed[trial.source].k].frame, b.num_inliers, a.num_inliers);
+      const double seconds = a.seconds;
+      a = b;
+      a.seconds = seconds;
+      a.message = a.message.empty() ? note : a.message + "; " + note;
+      ++changed;
+    }
+    spdlog::debug("structure anchors: exchange round {}: {} trials, {} of {} posed changed",
+                  round + 1, trials.size(), changed, posed.size());
+    if (changed == 0) break;
+  }
+}
 
 // The consensus pass (StructureAnchorOptions::consensus_radius_m): each posed anchor's camera is
 // placed by the similarities of the posed anchors around it (same segment, within half the window

@@ -322,6 +322,15 @@ int RunAnchor(int argc, char** argv) {
                  "structure: each ok anchor moved to the median of its ok neighbours' placements "
                  "of its camera, itself included (true/false; the move in consensus_move_m)")
       ->capture_default_str();
+  app.add_option("--exchange-rounds", structure.exchange_rounds,
+                 "structure: after the first pass, each anchor registered again from the fits of "
+                 "its neighbours that put more of their points on the map and place it elsewhere, "
+                 "the fit with most points on the map kept; at most this many rounds (0: off)")
+      ->capture_default_str();
+  app.add_option("--auto-min-ok-share", structure.auto_min_ok_share,
+                 "structure auto: where the VO's points leave fewer anchors ok than this share of "
+                 "the frames, the SIFT structure's run too, the one with more ok anchors kept")
+      ->capture_default_str();
   app.add_option("--rotation-consensus", structure.rotation_consensus,
                  "structure: each anchor registered again with the median rotation of the anchors "
                  "whose windows overlap its own held (true/false)")
@@ -487,7 +496,8 @@ int RunAnchor(int argc, char** argv) {
       result = AnchorDriveByStructure(inputs, vo, structure, progress.Callback());
     } else {
       // The VO's points first; where they do not fix the anchors along the road, the SIFT
-      // structure too, and the better fixed one gets the passes.
+      // structure too, and the better fixed one gets the passes; where they leave too few anchors
+      // ok in the end, the SIFT structure's run too, the one with more ok kept.
       StructureChoice choice;
       const auto after_the_first = [&] {
         progress.Finish();  // the VO's points' first pass
@@ -495,7 +505,13 @@ int RunAnchor(int argc, char** argv) {
       };
       result = AnchorDriveByStructureAuto(inputs, vo, after_the_first, structure,
                                           progress.Callback(), &choice);
-      if (choice.alternative_tried) {
+      if (choice.decided_by_ok) {
+        spdlog::info(
+            "structure auto: {} of {} anchors ok with the VO's points (fixed along the road in "
+            "the first pass, median sigma {:.3f} m), {} with the SIFT structure: the {} kept",
+            choice.first_ok, result.frames.size(), choice.first_sigma_m, choice.alternative_ok,
+            choice.alternative_kept ? "SIFT structure" : "VO's points");
+      } else if (choice.alternative_tried) {
         spdlog::info(
             "structure auto: median along-road sigma {:.3f} m with the VO's points, {:.3f} m with "
             "the SIFT structure ({}): the {} kept",

@@ -23,7 +23,9 @@
 //     (along_information >= min_along_information, along_sigma_m <= max_along_sigma_m), within
 //     max_prior_sigmas * gnss_sigma_m of the GNSS, at camera height over the map's ground and
 //     nearly level; else `rejected` with the reason.
-//  5. Drift pass (ScaleDriftModel::kAcrossAnchors, default): the VO's scale drift at f from the
+//  5. The fits' exchange (exchange_rounds): each anchor registered again from its better-fitting
+//     neighbours' similarities, the fit with most points on the map kept.
+//  6. Drift pass (ScaleDriftModel::kAcrossAnchors, default): the VO's scale drift at f from the
 //     scales of the other anchors around it, then f registered again from its own fit with the
 //     structure warped by that drift (StructureDrift); twice, the second round's drift from the
 //     first round's scales (each then the scale at its camera), registered from the first
@@ -115,6 +117,31 @@ struct StructureAnchorOptions {
   double refine_window_m = 0.0;  // then refined over this road length about f (0: not;
                                  // KITTI: no gain at 10-20 m)
   std::vector<double> refine_distances_m = {0.6, 0.4, 0.25};  // with these distances, no search
+  // The fits' exchange, right after the first pass (ExchangeFits in the source): the seed search
+  // holds the GNSS seed's scale, and a window's GNSS track (3 m noise) gives a scale 5-10 % off,
+  // so a window may settle in a basin at that scale, metres along the road from the right one,
+  // with fewer of its points on the map (synthetic street, world 2: 18 of 42 anchors at scale
+  // 1.94-2.06, a third of their points on the map, beside neighbours at 2.25 with a half). Each
+  // posed anchor is registered again from the similarity of each neighbour (same segment, within
+  // half the window) that puts more of its own window's points on the map than the anchor does
+  // and places the anchor's camera elsewhere (beyond consensus_radius_m; at most two such
+  // placements, the best-fitting neighbour of each), over the levels that free the scale, and
+  // keeps the fit that puts most of its points on the map: the first pass's own criterion, with
+  // the neighbours' fits as further seeds. Only at a scale within max_scale_change of the GNSS
+  // seed's, offered and taken: a structure shrunk far below it can put more of its points on the
+  // map than the right one (KLT points, a drive's last window: 0.72 times the seed's scale, 56 %
+  // of its points against 51 %); an anchor whose own scale is not within it takes any fit that
+  // is. Repeated up to this many rounds while any anchor changes (a right basin spreads by half
+  // a window per round); 0: off.
+  int exchange_rounds = 2;
+  // `--structure auto` (AnchorDriveByStructureAuto): where the first structure's finished run
+  // has fewer ok anchors than this share of the frames, the alternative structure's finished run
+  // too, and the one with more ok anchors is kept. The reliability target (90 % of the
+  // attempted anchors ok): below it the first structure has failed the drive, and the pass over
+  // the images that the alternative costs is worth it; above it, not paid. Synthetic street,
+  // world 2, VGA query: the VO's points fix the first pass (median sigma 0.012 m) and leave 1 of
+  // 42 anchors ok after the passes (weak along the road), the SIFT structure 42 of 42.
+  double auto_min_ok_share = 0.9;
   // Consensus: the VO is consistent within a window (synthetic street: 0.008 m), so neighbouring
   // anchors' similarities place a frame's camera alike; a street of repeated facades gives each
   // window's registration peaks a facade period apart, and the anchors that land on another peak
@@ -351,6 +378,12 @@ struct StructureChoice {
   bool alternative_kept = false;          // ... smaller: the alternative anchored the drive
   bool decided_by_finished_runs = false;  // equal first-pass medians: the sigmas above are the
                                           // finished runs'
+  // The first fixed along the road, but its finished run has fewer ok anchors than
+  // auto_min_ok_share of the frames: the alternative's finished run too (alternative_tried),
+  // kept with more ok anchors.
+  bool decided_by_ok = false;
+  int first_ok = 0;        // ok anchors of the first's finished run (when not tried before)
+  int alternative_ok = 0;  // ... and of the alternative's (decided_by_ok)
 };
 
 // `epiloc anchor --structure auto`: the first pass (every frame from the GNSS seed) with `vo`'s
@@ -360,7 +393,10 @@ struct StructureChoice {
 // passes (drift, consensus, rotation consensus, the neighbours' check) only for the structure
 // whose first pass has the smaller median sigma. Equal medians (the sigma comes in steps of half
 // the finest correspondence distance) tell nothing: then both get the passes and the finished
-// runs' medians decide (ties: `vo`). `choice` (optional) gets the figures.
+// runs' medians decide (ties: `vo`). Where `vo`'s first pass fixes them but its finished run has
+// fewer ok anchors than options.auto_min_ok_share of the frames, the alternative's finished run
+// too, and the one with more ok anchors is kept (ties: `vo`). `choice` (optional) gets the
+// figures.
 AnchorDriveResult AnchorDriveByStructureAuto(const AnchorInputs& inputs,
                                              const VoStructure& vo,
                                              const std::function<VoStructure()>& alternative,
