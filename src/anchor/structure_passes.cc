@@ -28,6 +28,11 @@ constexpr const char* kConsensusNote = "re-registered from the consensus of its 
 // The start of the fits' exchange's note in the message of an anchor it registered again.
 constexpr const char* kExchangeNote = "registered from frame ";
 
+// Appends a pass's note to an anchor's message ("; " between notes).
+void AppendNote(const std::string& note, std::string* message) {
+  *message = message->empty() ? note : *message + "; " + note;
+}
+
 // A posed anchor of the consensus pass.
 struct Posed {
   size_t k;  // index into AnchorDriveResult::frames
@@ -131,11 +136,10 @@ void RegisterAgain(const DriveAnchoring& run,
       const size_t end = before.message.find("; ", exchanged);
       const std::string note = before.message.substr(
           exchanged, end == std::string::npos ? std::string::npos : end - exchanged);
-      again.message = again.message.empty() ? note : again.message + "; " + note;
+      AppendNote(note, &again.message);
     }
     if (consensus_note || before.message.find(kConsensusNote) != std::string::npos) {
-      again.message =
-          again.message.empty() ? kConsensusNote : again.message + "; " + kConsensusNote;
+      AppendNote(kConsensusNote, &again.message);
     }
     out->frames[k] = again;
   });
@@ -264,7 +268,7 @@ void RegisterWithDrift(const DriveAnchoring& run,
     const double seconds = a.seconds + b.seconds - first_seconds[k];
     a = b;
     a.seconds = seconds;
-    a.message = a.message.empty() ? note : a.message + "; " + note;
+    AppendNote(note, &a.message);
   }
 }
 
@@ -347,7 +351,7 @@ void ExchangeFits(const DriveAnchoring& run, AnchorDriveResult* out) {
       const double seconds = a.seconds;
       a = b;
       a.seconds = seconds;
-      a.message = a.message.empty() ? note : a.message + "; " + note;
+      AppendNote(note, &a.message);
       ++changed;
     }
     spdlog::debug("structure anchors: exchange round {}: {} trials, {} of {} posed changed",
@@ -437,7 +441,7 @@ void GateByNeighbours(const DriveAnchoring& run, AnchorDriveResult* out) {
       continue;
     }
     a.status = AnchorStatus::kRejected;
-    a.message = a.message.empty() ? note : a.message + "; " + note;
+    AppendNote(note, &a.message);
   }
 }
 
