@@ -365,23 +365,16 @@ BuildMapSummary BuildMap(const std::string& drive_dir,
 
   summary.num_points_out = static_cast<int64_t>(cloud.size());
   summary.bounds = ComputeBounds(cloud);
-  MapSidecar sidecar;
-  sidecar.enu_origin = summary.enu_origin;
-  sidecar.origin_source = source;
+  MapSidecar sidecar = DescribeCloud(cloud, summary.enu_origin, source);
   sidecar.source_drive = drive.name;
   sidecar.source_dir = std::filesystem::absolute(drive.dir).lexically_normal().string();
   sidecar.voxel_m = options.voxel_m;
-  sidecar.num_points = summary.num_points_out;
   sidecar.num_scans = summary.num_scans;
-  if (cloud.HasIntensity()) sidecar.attributes.push_back("intensity");
-  if (cloud.HasColour()) sidecar.attributes.push_back("rgb");
   if (options.colorize) {
     sidecar.colour_mode = ColourModeName(options.colour.mode);
     sidecar.colour_frames = summary.num_colour_frames;
     sidecar.coloured_points = summary.num_coloured_points;
   }
-  sidecar.bounds = summary.bounds;
-  sidecar.created_by = std::string("epiloc ") + EPILOC_VERSION;
   WriteMapSidecar(sidecar, SidecarPath(out_path));
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

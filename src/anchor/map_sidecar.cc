@@ -82,6 +82,20 @@ std::string SidecarPath(const std::string& cloud_path) {
   return path + ".json";
 }
 
+MapSidecar DescribeCloud(const PointCloud& cloud,
+                         const Geodetic& enu_origin,
+                         const std::string& origin_source) {
+  MapSidecar sidecar;
+  sidecar.enu_origin = enu_origin;
+  sidecar.origin_source = origin_source;
+  sidecar.num_points = static_cast<int64_t>(cloud.size());
+  if (cloud.HasIntensity()) sidecar.attributes.push_back("intensity");
+  if (cloud.HasColour()) sidecar.attributes.push_back("rgb");
+  sidecar.bounds = ComputeBounds(cloud);
+  sidecar.created_by = std::string("epiloc ") + EPILOC_VERSION;
+  return sidecar;
+}
+
 void WriteMapSidecar(const MapSidecar& sidecar, const std::string& path) {
   Json json = {{"format", "epiloc-map"},
                {"version", kSidecarVersion},

@@ -1,12 +1,15 @@
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "cli_common.h"
+#include "epiloc/anchor/map_sidecar.h"
 #include "epiloc/cli/commands.h"
+#include "epiloc/cloud/cloud_io.h"
 #include "epiloc/core/error.h"
 #include "epiloc/core/progress.h"
 #include "epiloc/synth/camera_presets.h"
@@ -369,6 +372,16 @@ int RunSynth(int argc, char** argv) {
   Progress progress("synth", 0);
   const SynthSummary summary = GenerateSynthetic(options, out_dir, progress.Callback());
   progress.Finish();
+  if (options.lidar) {
+    // The map's frame travels with it, as build-map's does: anchor and render read it.
+    const std::string map_path = (std::filesystem::path(out_dir) / "lidar" / "map.ply").string();
+    MapSidecar sidecar =
+        DescribeCloud(ReadPointCloud(map_path), options.world.origin, "synthetic world origin");
+    sidecar.source_drive = "synth seed " + std::to_string(options.seed);
+    sidecar.source_dir = std::filesystem::absolute(out_dir).lexically_normal().string();
+    sidecar.num_scans = summary.num_lidar_scans;
+    WriteMapSidecar(sidecar, SidecarPath(map_path));
+  }
   std::printf(
       "%s: survey %d frames, query %d frames, %d surfaces, %d LiDAR scans (%lld points), "
       "%.1f s\n",

@@ -21,6 +21,8 @@
 
 #include "anchor/anchor_test_util.h"
 #include "cli_run_util.h"
+#include "epiloc/anchor/map_sidecar.h"
+#include "epiloc/cloud/cloud_io.h"
 #include "epiloc/core/csv.h"
 #include "epiloc/eval/evaluate.h"
 #include "epiloc/io/pose_files.h"
@@ -436,8 +438,9 @@ TEST(PipelineStructure, SiftStructureChainOnTheSyntheticStreet) {
 // exact poses): lidar-track registers every pair and finds the track it was given, within what
 // 16 beams fix (the exact track corrected by at most 0.09 m over 80 m, measured 2026-11-28; 9 mm
 // with 64 beams). The same track shrunk by 3 % and tilted 0.5 deg (a throwaway script) came back
-// within 0.088 m.
-TEST(PipelineStructure, SynthScanFilesFeedLidarTrack) {
+// within 0.088 m. synth writes the map's sidecar (its ENU origin, points and scans) as build-map
+// does.
+TEST(PipelineStructure, SynthScanFilesFeedLidarTrackAndCarryTheMapFrame) {
   TempDir dir;
   RunEpiloc(
       fmt::format("synth --length-m 80 --seed 4 --lidar-rings 16 --lidar-spacing 5 --lidar-fov 360 "
@@ -445,6 +448,15 @@ TEST(PipelineStructure, SynthScanFilesFeedLidarTrack) {
                   dir / "world"));
   const Drive survey = LoadDrive(dir / "world/survey");
   ASSERT_GE(survey.lidar.size(), 10u);
+  // The map's frame travels with it (anchor and render need no --cloud-origin).
+  const std::optional<MapSidecar> sidecar = FindMapSidecar(dir / "world/lidar/map.ply");
+  ASSERT_TRUE(sidecar.has_value());
+  EXPECT_DOUBLE_EQ(sidecar->enu_origin.lat_deg, SynthOrigin().lat_deg);
+  EXPECT_DOUBLE_EQ(sidecar->enu_origin.lon_deg, SynthOrigin().lon_deg);
+  EXPECT_DOUBLE_EQ(sidecar->enu_origin.alt_m, SynthOrigin().alt_m);
+  EXPECT_EQ(sidecar->num_points,
+            static_cast<int64_t>(ReadPointCloud(dir / "world/lidar/map.ply").size()));
+  EXPECT_EQ(sidecar->num_scans, static_cast<int64_t>(survey.lidar.size()));
   RunEpiloc(fmt::format("lidar-track --drive {} --steps {} --out {}", dir / "world/survey",
                         dir / "steps.csv", dir / "corrected"));
   CsvReader steps(dir / "steps.csv");

@@ -50,6 +50,12 @@ std::string SidecarPath(const std::string& cloud_path);
 void WriteMapSidecar(const MapSidecar& sidecar, const std::string& path);
 MapSidecar ReadMapSidecar(const std::string& path);
 
+// A sidecar for `cloud` (its point count, attributes and bounds) in the ENU frame about
+// `enu_origin`, created_by this build; the caller fills in the source and the scans.
+MapSidecar DescribeCloud(const PointCloud& cloud,
+                         const Geodetic& enu_origin,
+                         const std::string& origin_source);
+
 // The sidecar of `cloud_path` if one exists (nullopt otherwise).
 std::optional<MapSidecar> FindMapSidecar(const std::string& cloud_path);
 
