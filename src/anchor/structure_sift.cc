@@ -68,9 +68,12 @@ constexpr double kMinSpreadM = 5.0;  // a shorter segment's scale would be the G
 // Metres per VO unit of a segment: the spread of the GNSS fixes at its poses over that of its VO
 // centres (noise raises it by sigma^2 / spread^2: 2 % for 3 m over a 20 m spread; the
 // triangulation's metric gates need no better); none when the fixes spread less than kMinSpreadM.
+// `spread_m` gets the fixes' horizontal spread (RMS about their mean; 0 with fewer than two).
 std::optional<double> GnssScale(const Drive& drive,
                                 const EnuFrame& local,
-                                const std::vector<const StampedPose*>& poses) {
+                                const std::vector<const StampedPose*>& poses,
+                                double* spread_m) {
+  *spread_m = 0.0;
   std::vector<Eigen::Vector3d> gnss, centres;
   for (const StampedPose* pose : poses) {
     const auto fix = drive.gnss.Interpolate(pose->timestamp_s, drive.max_gap_s);
@@ -91,7 +94,8 @@ std::optional<double> GnssScale(const Drive& drive,
     g2 += (gnss[i] - gm).head<2>().squaredNorm();
     v2 += (centres[i] - vm).squaredNorm();
   }
-  if (g2 / gnss.size() < kMinSpreadM * kMinSpreadM || v2 <= 0.0) return std::nullopt;
+  *spread_m = std::sqrt(g2 / gnss.size());
+  if (*spread_m < kMinSpreadM || v2 <= 0.0) return std::nullopt;
   return std::sqrt(g2 / v2);
 }
 
@@ -123,10 +127,14 @@ VoStructure TriangulateAlongVo(const std::string& drive_dir,
   double track_length_sum = 0.0;
   for (const auto& [segment, poses] : by_segment) {
     if (poses.size() < 2) continue;
-    const std::optional<double> scale = GnssScale(drive, local, poses);
+    double spread_m = 0.0;
+    const std::optional<double> scale = GnssScale(drive, local, poses, &spread_m);
     if (!scale) {
-      spdlog::info("VO segment {}: GNSS spread below {} m, its VO points kept", segment,
-                   kMinSpreadM);
+      spdlog::info(
+          "VO segment {} (frames {}..{}): its GNSS fixes spread {:.1f} m (RMS), below the {} m "
+          "that give the SIFT structure a scale (a shorter drive's would be the fixes' noise): "
+          "no SIFT points, its VO points kept",
+          segment, poses.front()->frame, poses.back()->frame, spread_m, kMinSpreadM);
       continue;
     }
     const Eigen::Matrix3d level =
