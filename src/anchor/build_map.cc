@@ -364,8 +364,8 @@ BuildMapSummary BuildMap(const std::string& drive_dir,
   WritePointCloud(out_path, cloud, write_options);
 
   summary.num_points_out = static_cast<int64_t>(cloud.size());
-  summary.bounds = ComputeBounds(cloud);
   MapSidecar sidecar = DescribeCloud(cloud, summary.enu_origin, source);
+  summary.bounds = sidecar.bounds;
   sidecar.source_drive = drive.name;
   sidecar.source_dir = std::filesystem::absolute(drive.dir).lexically_normal().string();
   sidecar.voxel_m = options.voxel_m;
