@@ -688,9 +688,12 @@ AnchorDriveResult AnchorByStructure(const AnchorInputs& inputs,
     c.alternative_sigma_m = MedianAlongSigma(other);
     return other;
   };
-  if (alternative && c.first_sigma_m > options.max_along_sigma_m) {
+  if (alternative && c.first_sigma_m >= options.max_along_sigma_m) {
     // `auto`: the alternative structure too where the first's anchors are not fixed along the
-    // road. The first passes decide where their median along-road sigmas differ (the passes
+    // road better than the reliability limit. At the limit (the default 0.15 m is half the finest
+    // correspondence distance) the median anchor's along-road profile cannot tell a move of one
+    // step from its fit: it is placed to the profile's resolution, its Hessian's sigma unused.
+    // The first passes decide where their median along-road sigmas differ (the passes
     // then run once); equal medians (the sigma comes in steps of half the finest distance) tell
     // nothing, and the finished runs decide.
     AnchorDriveResult other = alternative_first_pass();

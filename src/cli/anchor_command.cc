@@ -312,7 +312,8 @@ int RunAnchor(int argc, char** argv) {
   app.add_option("--structure", structure_source,
                  "structure: the points registered to the map: vo (the VO's own KLT points), sift "
                  "(the drive's SIFT features triangulated along the VO poses) or auto (vo; where "
-                 "its anchors are not fixed along the road, sift too, and the better fixed kept)")
+                 "its anchors' median along-road sigma is not below --max-along-sigma, sift too, "
+                 "and the better fixed kept)")
       ->capture_default_str();
   app.add_option("--consensus-radius", structure.consensus_radius_m,
                  "structure: anchors farther than this from their neighbours' agreed placement "

@@ -276,10 +276,12 @@ TEST(StructureAnchor, SiftStructureAlongTheVoPosesPlacesTheSyntheticQuery) {
   EXPECT_TRUE(same_poses(klt_fixes, AnchorDriveByStructure(inputs, klt, lenient)));
   // Where the first structure fixes its first pass but leaves fewer than auto_min_ok_share of the
   // anchors ok in the end, the alternative's finished run too, and the one with more ok anchors
-  // is kept (ties: the first). Here the SIFT structure given first, with a claim along the road of
-  // 0.3 m (its first pass's median sigma; so it counts as fixed) and every anchor asked to be ok.
+  // is kept (ties: the first). Here the SIFT structure given first, with the reliability limit
+  // along the road just above 0.3 m (its first pass's median sigma, so it counts as fixed: a
+  // median at the limit would not; the profile's sigmas come in steps of 0.15 m, so 0.31 m lets
+  // the anchors 0.3 m does) and every anchor asked to be ok.
   StructureAnchorOptions relaxed = options;
-  relaxed.max_along_sigma_m = 0.3;
+  relaxed.max_along_sigma_m = 0.31;
   relaxed.auto_min_ok_share = 1.0;
   const auto count_ok = [](const AnchorDriveResult& r) {
     return static_cast<int>(std::count_if(r.frames.begin(), r.frames.end(), [](const auto& a) {
@@ -290,7 +292,7 @@ TEST(StructureAnchor, SiftStructureAlongTheVoPosesPlacesTheSyntheticQuery) {
   const AnchorDriveResult klt_relaxed = AnchorDriveByStructure(inputs, klt, relaxed);
   const int sift_ok = count_ok(sift_relaxed);
   const int klt_ok = count_ok(klt_relaxed);
-  std::printf("ok anchors with a 0.3 m claim: SIFT %d, KLT %d of %zu\n", sift_ok, klt_ok,
+  std::printf("ok anchors with a 0.31 m limit: SIFT %d, KLT %d of %zu\n", sift_ok, klt_ok,
               sift_relaxed.frames.size());
   ASSERT_LT(sift_ok, static_cast<int>(sift_relaxed.frames.size()));
   int asked_klt = 0;

@@ -373,7 +373,7 @@ AnchorDriveResult AnchorDriveByStructure(const AnchorInputs& inputs,
 // What AnchorDriveByStructureAuto chose.
 struct StructureChoice {
   double first_sigma_m = INFINITY;        // MedianAlongSigma of the first pass with `vo`
-  bool alternative_tried = false;         // the first above max_along_sigma_m: the alternative
+  bool alternative_tried = false;         // the first not below max_along_sigma_m: the alternative
   double alternative_sigma_m = INFINITY;  // ... its first pass's
   bool alternative_kept = false;          // ... smaller: the alternative anchored the drive
   bool decided_by_finished_runs = false;  // equal first-pass medians: the sigmas above are the
@@ -387,16 +387,17 @@ struct StructureChoice {
 };
 
 // `epiloc anchor --structure auto`: the first pass (every frame from the GNSS seed) with `vo`'s
-// points; where they do not fix the anchors along the road (MedianAlongSigma above
-// options.max_along_sigma_m), also with `alternative()`'s structure (called then only: e.g. the
-// SIFT structure, TriangulateAlongVo, which costs a pass over the drive's images), and the
-// passes (drift, consensus, rotation consensus, the neighbours' check) only for the structure
-// whose first pass has the smaller median sigma. Equal medians (the sigma comes in steps of half
-// the finest correspondence distance) tell nothing: then both get the passes and the finished
-// runs' medians decide (ties: `vo`). Where `vo`'s first pass fixes them but its finished run has
-// fewer ok anchors than options.auto_min_ok_share of the frames, the alternative's finished run
-// too, and the one with more ok anchors is kept (ties: `vo`). `choice` (optional) gets the
-// figures.
+// points; where they do not fix the anchors along the road better than the reliability limit
+// (MedianAlongSigma at or above options.max_along_sigma_m: with the default limit, half the finest
+// correspondence distance, the median anchor placed only to its along-road profile's resolution),
+// also with `alternative()`'s structure (called then only: e.g. the SIFT structure,
+// TriangulateAlongVo, which costs a pass over the drive's images), and the passes (drift,
+// consensus, rotation consensus, the neighbours' check) only for the structure whose first pass has
+// the smaller median sigma. Equal medians (the sigma comes in steps of half the finest
+// correspondence distance) tell nothing: then both get the passes and the finished runs' medians
+// decide (ties: `vo`). Where `vo`'s first pass fixes them but its finished run has fewer ok anchors
+// than options.auto_min_ok_share of the frames, the alternative's finished run too, and the one
+// with more ok anchors is kept (ties: `vo`). `choice` (optional) gets the figures.
 AnchorDriveResult AnchorDriveByStructureAuto(const AnchorInputs& inputs,
                                              const VoStructure& vo,
                                              const std::function<VoStructure()>& alternative,
