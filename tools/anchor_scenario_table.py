@@ -109,9 +109,12 @@ def main():
                            ("s_per_anchor", s)):
             suite[key].append(value)
     print()
+    # Without an ok anchor in any run there is no error to report: "-", as in the table.
     print(f"suite worst: ok share {100 * worst(suite['share'], min):.0f} %, horizontal median "
-          f"{worst(suite['h_median']):.3f} m, max {worst(suite['h_max']):.3f} m, rotation max "
-          f"{worst(suite['rot_max']):.3f} deg, {worst(suite['s_per_anchor']):.2f} s per anchor")
+          f"{cell(worst(suite['h_median']), '{:.3f} m')}, "
+          f"max {cell(worst(suite['h_max']), '{:.3f} m')}, "
+          f"rotation max {cell(worst(suite['rot_max']), '{:.3f} deg')}, "
+          f"{cell(worst(suite['s_per_anchor']), '{:.2f}')} s per anchor")
     print("beyond target: " + ("none" if not misses else "; ".join(misses)))
 
 
