@@ -37,8 +37,7 @@ struct Fit {
 
 bool Better(const StructureRegistration& a, const StructureRegistration& b) {
   if (a.success != b.success) return a.success;
-  if (a.num_inliers != b.num_inliers) return a.num_inliers > b.num_inliers;
-  return a.rms_m < b.rms_m;
+  return structure_internal::FitsBetter(a.num_inliers, a.rms_m, b.num_inliers, b.rms_m);
 }
 
 // The seed turned to the road's grade. The seed holds camera k level, so on a grade the seeded

@@ -29,6 +29,14 @@ struct Restart {
   bool hold_rotation = false;
 };
 
+// Of two fits of one structure, whether the first is the better: more of its points on the map's
+// surfaces, then the smaller RMS residual (the first pass's choice among its seeds, and the fits'
+// exchange's among the neighbours' fits).
+inline bool FitsBetter(int inliers_a, double rms_a, int inliers_b, double rms_b) {
+  if (inliers_a != inliers_b) return inliers_a > inliers_b;
+  return rms_a < rms_b;
+}
+
 // What anchoring a drive's frames shares: the drive, its frames to anchor (`indices` into
 // drive.frames), their VO poses (`pose_of`: per drive frame its index in vo.poses, or -1), the map
 // and the options.

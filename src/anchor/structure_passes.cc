@@ -341,8 +341,7 @@ void ExchangeFits(const DriveAnchoring& run, AnchorDriveResult* out) {
       a.seconds += b.seconds;
       if (!b.has_pose || !ScaleAllowed(b, options)) continue;
       if (ScaleAllowed(a, options) &&
-          (b.num_inliers < a.num_inliers ||
-           (b.num_inliers == a.num_inliers && !(b.residual_m < a.residual_m)))) {
+          !FitsBetter(b.num_inliers, b.residual_m, a.num_inliers, a.residual_m)) {
         continue;
       }
       const std::string note =
