@@ -28,6 +28,20 @@ int RunVo(int argc, char** argv) {
                  "'none' = not written), for `epiloc anchor --method structure`");
   app.add_option("--max-features", options.klt.max_features, "Tracked features per frame")
       ->capture_default_str();
+  // The tracker's settings: the anchors from the VO's points depend on them (README, "How much
+  // the anchors depend on the VO's tracker"); the anchoring suite varies them.
+  app.add_option("--klt-window", options.klt.window_px,
+                 "Side of the Lucas-Kanade window, pixels (odd, >= 5)")
+      ->capture_default_str();
+  app.add_option("--klt-quality", options.klt.quality_level,
+                 "Corners kept: Shi-Tomasi response relative to the image's best corner, (0, 1)")
+      ->capture_default_str();
+  app.add_option("--klt-fb-error", options.klt.max_fb_error_px,
+                 "Tracks dropped above this forward-backward error, pixels")
+      ->capture_default_str();
+  app.add_option("--klt-min-distance", options.klt.min_distance_px,
+                 "Least distance between two tracked features, pixels")
+      ->capture_default_str();
   app.add_option("--init-min-flow-px", options.init_min_flow_px,
                  "Median feature motion (pixels) before the map is initialised")
       ->capture_default_str();
