@@ -78,13 +78,29 @@ anchor_run() {
     >> "$results"
 }
 
-# synthetic NAME EVERY "WORLD_OPTIONS" "QUERY_OPTIONS": `epiloc synth` of a street of
-# synthetic_length_m with both option sets (world seed = run; the world, its survey and its LiDAR
-# map are shared by every scenario with the same WORLD_OPTIONS: later ones generate their query
-# only), the query's VO, anchors of every EVERY-th frame.
+# vo_options_of_run "VARIANTS" RUN: the VO options of a run, from a '|'-separated list of option
+# sets (run r takes set (r - 1) mod n); empty for none.
+vo_options_of_run() {
+  local variants=$1 run=$2
+  [[ -n $variants ]] || return 0
+  local -a sets
+  IFS='|' read -r -a sets <<< "$variants"
+  echo "${sets[$(( (run - 1) % ${#sets[@]} ))]}"
+}
+
+# vo_file DIR "VO_OPTIONS": where the VO with those options is cached in DIR (vo.tum for none).
+vo_file() {
+  if [[ -z $2 ]]; then echo "$1/vo.tum"; else echo "$1/vo_$(echo "$2" | md5sum | cut -c1-8).tum"; fi
+}
+
+# synthetic NAME EVERY "WORLD_OPTIONS" "QUERY_OPTIONS" ["VO_VARIANTS"]: `epiloc synth` of a street
+# of synthetic_length_m with both option sets (world seed = run; the world, its survey and its
+# LiDAR map are shared by every scenario with the same WORLD_OPTIONS: later ones generate their
+# query only), the query's VO (with the run's VO_VARIANTS set, vo_options_of_run), anchors of
+# every EVERY-th frame.
 synthetic_length_m=${EPILOC_ANCHOR_SUITE_LENGTH_M:-50}
 synthetic() {
-  local name=$1 every=$2 world_options=$3 query_options=$4
+  local name=$1 every=$2 world_options=$3 query_options=$4 vo_variants=${5:-}
   [[ $name =~ $filter ]] || return 0
   local world_key query_key
   world_key=$(echo "len$synthetic_length_m $world_options" | md5sum | cut -c1-10)
@@ -104,24 +120,29 @@ synthetic() {
     else
       query=$world
     fi
-    say "$name run $run: vo"
-    cached "$query/vo.tum" "$epiloc" vo --drive "$query/query" --out "$query/vo.tum.tmp" \
-      --points "$query/vo.points.csv" -q
+    local vo_options vo
+    vo_options=$(vo_options_of_run "$vo_variants" "$run")
+    vo=$(vo_file "$query" "$vo_options")
+    say "$name run $run: vo $vo_options"
+    # shellcheck disable=SC2086
+    cached "$vo" "$epiloc" vo --drive "$query/query" --out "$vo.tmp" \
+      --points "${vo%.tum}.points.csv" -q $vo_options
     local origin
     origin=$(python3 -c 'import json, sys
 o = json.load(open(sys.argv[1]))["origin"]
 print("{},{},{}".format(o["lat_deg"], o["lon_deg"], o["alt_m"]))' "$world/world.json")
-    anchor_run "$name" "$run" "$world/lidar/map.ply" "$query/query" "$query/vo.tum" "$every" \
+    anchor_run "$name" "$run" "$world/lidar/map.ply" "$query/query" "$vo" "$every" \
       --cloud-origin "$origin"
   done
 }
 
-# kitti NAME CAMERA: the shared drive's camera CAMERA (1: colour, 0: grey) with 3 m GPS on the
-# LiDAR's path (lidar-track), the map from camera 0's import (every 5th scan, intensity), k1 from
-# the map (calibrate-radial, which also gives the VO), anchors of every 10th frame, heading seed =
+# kitti NAME CAMERA ["VO_VARIANTS"]: the shared drive's camera CAMERA (1: colour, 0: grey) with
+# 3 m GPS on the LiDAR's path (lidar-track), the map from camera 0's import (every 5th scan,
+# intensity), k1 from the map (calibrate-radial, which also gives the VO; with VO_VARIANTS the
+# calibrated drive's VO with the run's set instead), anchors of every 10th frame, heading seed =
 # run.
 kitti() {
-  local name=$1 camera=$2
+  local name=$1 camera=$2 vo_variants=${3:-}
   [[ $name =~ $filter ]] || return 0
   if [[ ! -d $kitti ]]; then
     say "$name: skipped ($kitti not found)"
@@ -146,7 +167,17 @@ kitti() {
     mv "$k/calibrated$camera.tmp" "$k/calibrated$camera"
   fi
   for run in $(seq 1 "$runs"); do
-    anchor_run "$name" "$run" "$k/map.ply" "$k/calibrated$camera" "$k/vo$camera.tum" 10
+    local vo_options vo=$k/vo$camera.tum
+    vo_options=$(vo_options_of_run "$vo_variants" "$run")
+    if [[ -n $vo_options ]]; then
+      vo=$(vo_file "$k" "$vo_options")
+      vo=${vo%.tum}_camera$camera.tum
+      say "$name run $run: vo $vo_options"
+      # shellcheck disable=SC2086
+      cached "$vo" "$epiloc" vo --drive "$k/calibrated$camera" --out "$vo.tmp" \
+        --points "${vo%.tum}.points.csv" -q $vo_options
+    fi
+    anchor_run "$name" "$run" "$k/map.ply" "$k/calibrated$camera" "$vo" 10
   done
 }
 
@@ -166,10 +197,18 @@ synthetic synth_sparse_map 4 "--lidar-spacing 20 --lidar-rings 32" ""
 # Another day: other light, other parked cars, traffic in both drives (and so in the map).
 synthetic synth_light 4 "" "--query-sun 250,25 --query-exposure 1.3 --query-white-balance 1.15,1,0.8"
 synthetic synth_traffic 4 "--traffic 6" "--query-parked-cars-changed 0.3"
+# Another VO: the default query with the VO's feature tracker set otherwise (run 1: corners down
+# to 1 % of the best response, run 2: a 15 px window, run 3: tracks dropped beyond 0.3 px
+# forward-backward, run 4: a 31 px window). The anchors from the VO's own points moved by 0.3 m
+# and 0.5 deg with these (README, "How much the anchors depend on the VO's tracker"); other SLAM
+# systems' points differ more.
+tracker_variants="--klt-quality 0.01|--klt-window 15|--klt-fb-error 0.3|--klt-window 31"
+synthetic synth_vo_tracker 4 "" "" "$tracker_variants"
 
 # The shared KITTI drive.
 kitti kitti_camera1 1
 kitti kitti_camera0 0
+kitti kitti_camera1_vo_tracker 1 "$tracker_variants"
 
 # ---- The table -------------------------------------------------------------------------------
 elapsed=$(($(date +%s) - suite_start))
