@@ -106,6 +106,7 @@ void OrientByConsensus(const DriveAnchoring& run,
 struct MapBundleResult {
   bool success = false;
   Eigen::Quaterniond map_from_cam = Eigen::Quaterniond::Identity();  // the anchor's camera
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();                  // and its centre
   int cameras = 0;
   int points = 0;
   int points_on_map = 0;  // with a plane residual at the last distance

@@ -256,6 +256,7 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
     MapBundleResult r;
     r.success = true;
     r.map_from_cam = MapFromCam(camera);
+    r.centre = -(r.map_from_cam * Eigen::Vector3d(camera[3], camera[4], camera[5]));
     r.cameras = static_cast<int>(cameras.size());
     r.points = static_cast<int>(points.size());
     r.points_on_map = on_planes;
@@ -330,11 +331,24 @@ void RefineByMapBundle(const DriveAnchoring& run, AnchorDriveResult* out) {
       a.seconds += seconds / static_cast<double>(chunk.size());
       const MapBundleResult& b = results[i];
       if (!b.success) continue;
-      spdlog::debug("map bundle frame {}: {} cameras, {} points ({} on the map), turned {:.3f} deg",
-                    a.frame, b.cameras, b.points, b.points_on_map,
-                    a.map_from_cam.rotation.angularDistance(b.map_from_cam) / kDegToRad);
+      spdlog::debug(
+          "map bundle frame {}: {} cameras, {} points ({} on the map), turned {:.3f} deg, moved "
+          "{:.3f} m",
+          a.frame, b.cameras, b.points, b.points_on_map,
+          a.map_from_cam.rotation.angularDistance(b.map_from_cam) / kDegToRad,
+          (b.centre - a.map_from_cam.translation).head<2>().norm());
       a.map_from_cam.rotation = b.map_from_cam;
-      SetCentre(run.map_frame, a.map_from_cam.translation, &a);
+      Eigen::Vector3d centre = a.map_from_cam.translation;
+      if (a.status == AnchorStatus::kOk) {
+        // An ok anchor's camera goes where the images and the map put it, horizontally (its
+        // height stays the registration's, as in PlaceByConsensus); a doubted one keeps its own.
+        a.bundle_move_m = (b.centre - centre).head<2>().norm();
+        centre.head<2>() = b.centre.head<2>();
+        if (const auto gnss = GnssInMap(run, a.timestamp_s)) {
+          a.prior_offset_m = (centre - *gnss).head<2>().norm();
+        }
+      }
+      SetCentre(run.map_frame, centre, &a);
     }
   }
 }

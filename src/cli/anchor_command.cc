@@ -164,6 +164,7 @@ ResultTable ToResultTable(const AnchorDriveResult& anchors,
                          "structure_points",
                          "scale_drift_per_m",
                          "consensus_move_m",
+                         "bundle_move_m",
                          "message"};
   for (const AnchorResult& a : anchors.frames) {
     ResultRow row;
@@ -198,6 +199,7 @@ ResultTable ToResultTable(const AnchorDriveResult& anchors,
                  std::to_string(a.structure_points),
                  Fixed(a.scale_drift_per_m, 6),
                  Fixed(a.consensus_move_m, 4),
+                 Fixed(a.bundle_move_m, 4),
                  a.message};
     table.rows.push_back(std::move(row));
   }

@@ -18,6 +18,8 @@ constexpr double kFocalPx = 500.0;
 
 // The corridor: facades at x = -6 and x = +6 m (0 to 8 m high), the ground at z = 0, the road
 // along +y; cameras 1.5 m high in the right lane (x = +1.5), one per metre, looking along +y.
+constexpr double kPillarStart = 2.3;  // the first pillar front at or above y = 0, metres
+
 struct Corridor {
   Drive drive;  // not read by the bundle
   std::vector<size_t> indices = {0};
@@ -27,7 +29,9 @@ struct Corridor {
   EnuFrame map_frame{Geodetic{49.0, 8.4, 110.0}};
   StructureAnchorOptions options;
 
-  Corridor(int cameras, int anchor_pose) {
+  // `pillars`: also pillars standing out of both facades, 0.5 m deep and 1 m wide, every 6 m:
+  // their fronts face along the road and fix it.
+  Corridor(int cameras, int anchor_pose, bool pillars = false) {
     pose_of = {anchor_pose};
     Eigen::Matrix3d world_from_cam;  // x right, y down, z forward
     world_from_cam << 1, 0, 0,       //
@@ -45,12 +49,20 @@ struct Corridor {
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<double> u(0.0, 1.0);
     const double y_lo = -10.0, y_hi = cameras + 30.0;
+    // A pillar's front (facing -y) at y = kPillarStart + 6 k, x from the facade 0.5 m inwards,
+    // 0 to 3 m high.
+    const auto pillar_front = [](double y) { return kPillarStart + 6.0 * std::floor(y / 6.0); };
     for (int n = 0; n < 3000; ++n) {
-      const int surface = n % 3;
+      const int surface = n % (pillars ? 4 : 3);
       const double y = y_lo + (y_hi - y_lo) * u(rng);
-      const Eigen::Vector3d x = surface == 2
-                                    ? Eigen::Vector3d(-6.0 + 12.0 * u(rng), y, 0.0)
-                                    : Eigen::Vector3d(surface == 0 ? -6.0 : 6.0, y, 8.0 * u(rng));
+      Eigen::Vector3d x;
+      if (surface == 3) {
+        const double side = u(rng) < 0.5 ? -1.0 : 1.0;
+        x = Eigen::Vector3d(side * (5.5 + 0.5 * u(rng)), pillar_front(y), 3.0 * u(rng));
+      } else {
+        x = surface == 2 ? Eigen::Vector3d(-6.0 + 12.0 * u(rng), y, 0.0)
+                         : Eigen::Vector3d(surface == 0 ? -6.0 : 6.0, y, 8.0 * u(rng));
+      }
       VoPoint p;
       p.point_in_world = x;
       for (const StampedPose& pose : vo.poses) {
@@ -74,6 +86,16 @@ struct Corridor {
       }
       for (double s = -6.0; s <= 6.0; s += 0.2) {
         map.positions.emplace_back(static_cast<float>(s), static_cast<float>(y), 0.0f);
+      }
+    }
+    for (double y = pillar_front(y_lo); pillars && y <= y_hi; y += 6.0) {
+      for (double z = 0.0; z <= 3.0; z += 0.2) {
+        for (double d = 0.0; d <= 0.5; d += 0.1) {
+          for (const double side : {-1.0, 1.0}) {
+            map.positions.emplace_back(static_cast<float>(side * (6.0 - d)), static_cast<float>(y),
+                                       static_cast<float>(z));
+          }
+        }
       }
     }
     options.map_voxel_m = 0.0;
@@ -146,14 +168,61 @@ TEST(StructureBundle, RecoversTheCameraRotationOnAnExactStreet) {
   }
   c.indices = {0};
   c.pose_of = {20};
-  // The pass: the anchor takes the rotation, its centre stays.
+  // The pass: the anchor takes the rotation; its centre, which nothing on this street fixes along
+  // the road, stays where the prior holds it (0.6 mm: the window is turned back about its points
+  // on the map, not exactly about the camera).
   AnchorDriveResult result;
   result.frames.push_back(
       c.Anchor(Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * kDegToRad, Eigen::Vector3d::UnitZ()))));
   const Eigen::Vector3d centre = result.frames[0].map_from_cam.translation;
   structure_internal::RefineByMapBundle(run, &result);
   EXPECT_LT(RotationDifferenceDeg(result.frames[0].map_from_cam.rotation, truth), 0.002);
-  EXPECT_EQ(result.frames[0].map_from_cam.translation, centre);
+  EXPECT_LT((result.frames[0].map_from_cam.translation - centre).norm(), 0.002);
+  EXPECT_LT(result.frames[0].bundle_move_m, 0.002);
+}
+
+// An ok anchor placed 0.2 m too far along the road (its whole window with it, as a structure bent
+// by the VO's poses leaves it): where surfaces face along the road (the pillars' fronts), the
+// bundle puts its camera back, against the prior that holds it within 0.15 m of its placement.
+// A rejected anchor is doubted and keeps its place; its height is the registration's either way.
+TEST(StructureBundle, OkAnchorsTakeTheCentreTheImagesAndTheMapGive) {
+  Corridor c(41, 20, /*pillars=*/true);
+  const structure_internal::MapLoader load = c.Loader();
+  const structure_internal::DriveAnchoring run{c.drive, c.indices,   c.pose_of, c.vo,
+                                               load,    c.map_frame, c.options};
+  const Eigen::Vector3d truth = c.vo.poses[20].world_from_cam.translation;
+  const Eigen::Vector3d off(0.0, 0.2, 0.0);
+  AnchorResult a = c.Anchor(Eigen::Quaterniond::Identity());
+  a.map_from_cam.translation += off;
+  const structure_internal::MapBundleResult b = structure_internal::AdjustWindowToMap(run, 0, a);
+  ASSERT_TRUE(b.success);
+  EXPECT_LT((b.centre - truth).norm(), 0.002) << b.centre.transpose();  // 0.4 mm
+
+  AnchorDriveResult result;
+  result.frames.push_back(a);
+  structure_internal::RefineByMapBundle(run, &result);
+  const AnchorResult& moved = result.frames[0];
+  EXPECT_LT((moved.map_from_cam.translation - truth).head<2>().norm(), 0.002);
+  EXPECT_EQ(moved.map_from_cam.translation.z(), a.map_from_cam.translation.z());
+  EXPECT_NEAR(moved.bundle_move_m, 0.2, 0.002);
+
+  // Without the pillars nothing fixes it along the road: the prior keeps it where it was placed.
+  Corridor plain(41, 20);
+  const structure_internal::MapLoader plain_load = plain.Loader();
+  const structure_internal::DriveAnchoring plain_run{plain.drive,  plain.indices, plain.pose_of,
+                                                     plain.vo,     plain_load,    plain.map_frame,
+                                                     plain.options};
+  const structure_internal::MapBundleResult free =
+      structure_internal::AdjustWindowToMap(plain_run, 0, a);
+  ASSERT_TRUE(free.success);
+  EXPECT_LT((free.centre - (truth + off)).norm(), 0.002) << free.centre.transpose();
+
+  // Rejected: the rotation only.
+  result.frames[0] = a;
+  result.frames[0].status = AnchorStatus::kRejected;
+  structure_internal::RefineByMapBundle(run, &result);
+  EXPECT_EQ(result.frames[0].map_from_cam.translation, a.map_from_cam.translation);
+  EXPECT_TRUE(std::isnan(result.frames[0].bundle_move_m));
 }
 
 // A rejected anchor among ok ones (metres off along the road and turned by degrees, as a

@@ -152,6 +152,8 @@ struct AnchorResult {
                                           // relative change of scale per metre of road
   double consensus_move_m = NAN;          // structure: horizontal move of the camera to its
                                           // ok neighbours' median placement (NaN: not moved)
+  double bundle_move_m = NAN;             // structure: horizontal move of an ok anchor's camera
+                                          // by the map bundle (NaN: not adjusted)
 };
 
 // Anchors one frame. `image`: the frame undistorted into `camera` (grey or BGR); `local_map`: the
