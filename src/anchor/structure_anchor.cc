@@ -167,6 +167,17 @@ std::optional<Eigen::Vector3d> GnssInMap(const DriveAnchoring& run, double t) {
   return run.map_frame.ToEnu(s->position);
 }
 
+double MoveHorizontally(const DriveAnchoring& run, const Eigen::Vector2d& xy, AnchorResult* a) {
+  Eigen::Vector3d centre = a->map_from_cam.translation;
+  const double move = (xy - centre.head<2>()).norm();
+  centre.head<2>() = xy;
+  SetCentre(run.map_frame, centre, a);
+  if (const auto gnss = GnssInMap(run, a->timestamp_s)) {
+    a->prior_offset_m = (centre - *gnss).head<2>().norm();
+  }
+  return move;
+}
+
 AnchorResult AnchorOne(const DriveAnchoring& run, size_t index, const Restart* restart) {
   const Drive& drive = run.drive;
   const std::vector<int>& pose_of = run.pose_of;

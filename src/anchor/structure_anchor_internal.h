@@ -53,6 +53,10 @@ struct DriveAnchoring {
 // Puts an anchor's camera centre at `centre` (map frame), with its WGS-84 position and its
 // rotation in the local ENU there.
 void SetCentre(const EnuFrame& map_frame, const Eigen::Vector3d& centre, AnchorResult* a);
+// Moves an ok anchor's camera horizontally to `xy` (map frame), its height kept (the ground under
+// it moves by the road's grade times the move, a few millimetres), and its prior offset with it.
+// Returns the horizontal move, metres.
+double MoveHorizontally(const DriveAnchoring& run, const Eigen::Vector2d& xy, AnchorResult* a);
 
 // The drive's GNSS position at time `t` in the map frame; none beyond the drive's max_gap_s.
 std::optional<Eigen::Vector3d> GnssInMap(const DriveAnchoring& run, double t);

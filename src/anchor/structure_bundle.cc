@@ -338,17 +338,11 @@ void RefineByMapBundle(const DriveAnchoring& run, AnchorDriveResult* out) {
           a.map_from_cam.rotation.angularDistance(b.map_from_cam) / kDegToRad,
           (b.centre - a.map_from_cam.translation).head<2>().norm());
       a.map_from_cam.rotation = b.map_from_cam;
-      Eigen::Vector3d centre = a.map_from_cam.translation;
-      if (a.status == AnchorStatus::kOk) {
-        // An ok anchor's camera goes where the images and the map put it, horizontally (its
-        // height stays the registration's, as in PlaceByConsensus); a doubted one keeps its own.
-        a.bundle_move_m = (b.centre - centre).head<2>().norm();
-        centre.head<2>() = b.centre.head<2>();
-        if (const auto gnss = GnssInMap(run, a.timestamp_s)) {
-          a.prior_offset_m = (centre - *gnss).head<2>().norm();
-        }
-      }
-      SetCentre(run.map_frame, centre, &a);
+      SetCentre(run.map_frame, a.map_from_cam.translation, &a);
+      // An ok anchor's camera goes where the images and the map put it, horizontally (its height
+      // stays the registration's, as in PlaceByConsensus); a doubted one keeps its own.
+      if (a.status == AnchorStatus::kOk)
+        a.bundle_move_m = MoveHorizontally(run, b.centre.head<2>(), &a);
     }
   }
 }

@@ -456,15 +456,7 @@ void PlaceByConsensus(const DriveAnchoring& run, AnchorDriveResult* out) {
   for (size_t i = 0; i < ok.size(); ++i) {
     if (!centres[i]) continue;
     AnchorResult& a = out->frames[ok[i].k];
-    Eigen::Vector3d centre = a.map_from_cam.translation;
-    a.consensus_move_m = (*centres[i] - centre.head<2>()).norm();
-    centre.head<2>() = *centres[i];
-    SetCentre(run.map_frame, centre, &a);
-    // The prior offset follows the move (the ground under the camera moves by the road's grade
-    // times consensus_move_m, a few millimetres: height_above_ground_m is kept).
-    if (const auto gnss = GnssInMap(run, a.timestamp_s)) {
-      a.prior_offset_m = (centre - *gnss).head<2>().norm();
-    }
+    a.consensus_move_m = MoveHorizontally(run, *centres[i], &a);
   }
 }
 

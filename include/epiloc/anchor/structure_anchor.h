@@ -206,9 +206,9 @@ struct StructureAnchorOptions {
   // (AnchorResult::bundle_move_m; the registrations place the camera in a structure triangulated
   // along the VO's poses, which their errors bend: on the suite's world 2 every anchor of a run
   // 0.05-0.07 m behind, with the true poses as the VO 0.011 m); scale, height and flags are kept.
-  // Why: the registrations fit the
-  // structure's points to the map, and the structure triangulated along the VO's poses is turned
-  // against its cameras (synthetic street: up to 0.09 deg, mostly roll) and bent by the depths of
+  // Why: the registrations fit the structure's points to the map, and the structure triangulated
+  // along the VO's poses is turned against its cameras (synthetic street: up to 0.09 deg, mostly
+  // roll) and bent by the depths of
   // its thin- parallax points; the bundle lets the images say where the points are and the map
   // where they lie, and the camera follows its own sightings. The window is the anchors'
   // (window_m); one chunk over many anchors, not one bundle per anchor, because each anchor's own
