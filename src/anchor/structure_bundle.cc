@@ -10,6 +10,8 @@
 #include <spdlog/spdlog.h>
 
 #include "epiloc/core/error.h"
+#include "epiloc/core/parallel.h"
+#include "epiloc/io/frame_reader.h"
 #include "structure_anchor_internal.h"
 
 namespace epiloc {
@@ -71,6 +73,28 @@ struct CentreCost {
 
   Eigen::Vector3d centre_;
   double sigma_m_;
+};
+
+// The camera's roll against the one its image's vertical lines show: the map's z turned into
+// the camera's axes, its component along the measurement's tangent about the optical axis
+// (t_x . u: zero where the camera's up is the measured one), over its standard error. The pitch
+// those lines show is left out: in a camera that looks along the road vertical lines are nearly
+// parallel, so their convergence (the pitch) is a second-order effect that a leaning tree or a
+// lens model's error outweighs (KITTI: 0.3-0.8 deg off; README).
+struct RollCost {
+  RollCost(const Eigen::Vector3d& tangent_x, double sigma_rad) : t_(tangent_x), sigma_(sigma_rad) {}
+
+  template <typename T>
+  bool operator()(const T* pose, T* residual) const {
+    const T z[3] = {T(0), T(0), T(1)};
+    T u[3];
+    ceres::AngleAxisRotatePoint(pose, z, u);
+    residual[0] = (T(t_.x()) * u[0] + T(t_.y()) * u[1] + T(t_.z()) * u[2]) / T(sigma_);
+    return true;
+  }
+
+  Eigen::Vector3d t_;
+  double sigma_;
 };
 
 using Pose6 = std::array<double, 6>;
@@ -162,6 +186,7 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
   const double half = 0.5 * options.bundle_window_m;
   std::unordered_map<frame_t, int> camera_of;  // drive frame -> index in `cameras`
   std::vector<Pose6> cameras;
+  std::vector<frame_t> camera_frames;  // the drive frame of each camera
   for (size_t j = 0; j < vo.poses.size(); ++j) {
     const StampedPose& p = vo.poses[j];
     if (p.frame == kInvalidFrame || vo.SegmentOf(p.frame) != segment) continue;
@@ -169,6 +194,7 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
     const Eigen::Vector3d centre = sim * p.world_from_cam.translation;
     if (!near_an_anchor(centre, half)) continue;
     camera_of[p.frame] = static_cast<int>(cameras.size());
+    camera_frames.push_back(p.frame);
     cameras.push_back(ToPose6(sim.rotation * p.world_from_cam.rotation, centre));
   }
   if (cameras.size() < 3) return results;
@@ -210,6 +236,27 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
   if (cloud.size() < 100) return results;
   StructureMap map(cloud, options.registration);
 
+  // The roll each window camera's image shows (bundle_vertical_lines).
+  std::vector<std::optional<RollCost>> rolls(cameras.size());
+  if (options.bundle_vertical_lines) {
+    std::unordered_map<frame_t, size_t> index_of;
+    for (size_t i = 0; i < run.drive.frames.size(); ++i) index_of[run.drive.frames[i].frame] = i;
+    std::optional<FrameReader> reader;
+    if (!index_of.empty()) reader.emplace(run.drive);
+    ParallelFor(static_cast<int64_t>(cameras.size()), options.num_threads, [&](int64_t c) {
+      const auto it = index_of.find(camera_frames[static_cast<size_t>(c)]);
+      if (it == index_of.end()) return;
+      const std::optional<VerticalDirection> m =
+          MeasureVertical(reader->ReadGrey(it->second), run.drive.camera, options.vertical_lines);
+      if (!m || !(m->covariance(0, 0) > 0.0)) return;
+      rolls[static_cast<size_t>(c)].emplace(m->tangent_x, std::sqrt(m->covariance(0, 0)));
+    });
+    int measured = 0;
+    for (const auto& r : rolls) measured += r ? 1 : 0;
+    spdlog::debug("map bundle: the vertical from line segments in {} of {} cameras", measured,
+                  cameras.size());
+  }
+
   const double focal_px = vo.observation_focal_px;
   int on_planes = 0;
   int iterations = 0;
@@ -241,6 +288,12 @@ std::vector<MapBundleResult> AdjustWindowsToMap(const DriveAnchoring& run,
       problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CentreCost, 3, 6>(
                                    new CentreCost(a.centre, options.bundle_centre_sigma_m)),
                                nullptr, anchor_camera(a).data());
+    }
+    for (size_t c = 0; c < cameras.size(); ++c) {
+      if (!rolls[c]) continue;
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<RollCost, 1, 6>(new RollCost(*rolls[c])), nullptr,
+          cameras[c].data());
     }
     ceres::Solver::Options solver;
     solver.linear_solver_type = ceres::SPARSE_SCHUR;
@@ -294,6 +347,7 @@ void CheckMapBundleOptions(const StructureAnchorOptions& o) {
                "structure anchor: bundle_huber_px must be > 0");
   EPILOC_CHECK(std::isfinite(o.bundle_centre_sigma_m) && o.bundle_centre_sigma_m > 0,
                "structure anchor: bundle_centre_sigma_m must be > 0");
+  o.vertical_lines.Check();
 }
 
 MapBundleResult AdjustWindowToMap(const DriveAnchoring& run, size_t k, const AnchorResult& a) {

@@ -367,6 +367,11 @@ int RunAnchor(int argc, char** argv) {
                  "the cameras around the anchors and the points they saw adjusted to the images "
                  "and the map's planes together; each anchor takes its camera's rotation from it")
       ->capture_default_str();
+  app.add_option("--bundle-vertical-lines", structure.bundle_vertical_lines,
+                 "structure: the map bundle also holds each camera's roll near the one its "
+                 "image's near-vertical line segments show (building edges, poles), within their "
+                 "fit's uncertainty")
+      ->capture_default_str();
   app.add_option("--bundle-window", structure.bundle_window_m,
                  "structure: the map bundle takes the cameras within half this road length of "
                  "an anchor, metres")

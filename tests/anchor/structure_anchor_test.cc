@@ -441,7 +441,12 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   // 0.023 m, max 0.031 m (0.048 / 0.075 m without); the dense map 0.044 m, 2 deg grade 0.037 m,
   // sparse map 0.047 m (31 ok). The position target (0.05 m) is met on all four maps. With the
   // bundle's placement (2026-12-07, fourth session): 42 of 42 ok within 0.029 m and 0.040 deg;
-  // dense 0.037 m, grade 0.025 m, sparse 0.058 m (below).
+  // dense 0.037 m, grade 0.025 m, sparse 0.058 m (below). With the roll from the images' vertical
+  // lines (StructureAnchorOptions::bundle_vertical_lines, fifth session; on the suite's world 2
+  // the bundle's rotation 0.18 -> 0.09 deg): 42 of 42 ok within 0.035 m and 0.050 deg; dense
+  // 0.044 m / 0.057 deg, grade 0.028 / 0.046, sparse 0.064 m / 0.058 deg (31 of 42 ok): here,
+  // where the bundle's roll was already right, the lines' own scatter costs a few millimetres
+  // and hundredths of a degree.
   EXPECT_GE(e.ok * 10, e.total * 9);
   EXPECT_LE(e.max_horizontal_m, 0.05);
   EXPECT_LE(max_h, 0.05);
@@ -552,14 +557,16 @@ TEST(StructureAnchor, SiftStructurePlacesTheFifteenHertzQuery) {
   // Since the map bundle places the ok anchors (2026-12-07, fourth session) 0.047 -> 0.058 m, every
   // anchor about 0.05 m behind (on the suite's sparse map, worlds 1 and 2: 0.032 -> 0.019 m and
   // 0.092 -> 0.058 m; the other maps here: 15 Hz 0.031 -> 0.029 m, dense 0.044 -> 0.037 m, grade
-  // 0.037 -> 0.025 m): the position target is missed on this map again.
-  EXPECT_LE(Max(sp.posed_horizontal_m), 0.065);
+  // 0.037 -> 0.025 m): the position target is missed on this map again. With the roll from the
+  // vertical lines (2026-12-07, fifth session) 0.058 -> 0.064 m (rotation 0.080 -> 0.058 deg):
+  // 0.075 leaves the VO's run-to-run spread a margin.
+  EXPECT_LE(Max(sp.posed_horizontal_m), 0.075);
   // With the map bundle (2026-12-06, sixth session): rotation median 0.120 -> 0.054 deg, max
   // 0.169 -> 0.080 deg: the VO's structure turned against its cameras (mostly roll) and the
   // sparse map's own turn no longer reach the camera (README "The map bundle").
   EXPECT_LE(Max(sp.posed_rotation_deg), 0.1);
   EXPECT_GE(sp.ok * 2, sp.total);
-  EXPECT_LE(sp.max_horizontal_m, 0.065);
+  EXPECT_LE(sp.max_horizontal_m, 0.075);
 }
 
 TEST(StructureAnchor, FramesWithoutVoPoseAreLostAndBadInputThrows) {

@@ -60,6 +60,7 @@
 #include "epiloc/anchor/anchor.h"
 #include "epiloc/anchor/pose_prior.h"
 #include "epiloc/anchor/structure_registration.h"
+#include "epiloc/anchor/vertical_lines.h"
 #include "epiloc/geo/rigid3.h"
 #include "epiloc/io/pose_files.h"
 #include "epiloc/io/stella_map.h"
@@ -227,6 +228,15 @@ struct StructureAnchorOptions {
   double bundle_huber_px = 1.0;         // SIFT keypoints: about a pixel
   double bundle_centre_sigma_m = 0.15;  // an ok anchor claims its place along the road to
                                         // 2 sigma = 0.3 m (max_along_sigma_m)
+  // The map bundle also holds each window camera's roll (about its optical axis) near the one its
+  // image's near-vertical line segments show (MeasureVertical, vertical_lines.h), within their
+  // fit's standard error: the sightings and the map's planes leave a soft turn of the cameras
+  // with the points sliding within their surfaces, where the bundle settled 0.1-0.2 deg off,
+  // mostly in roll (README, "Where the map bundle's tilt ..."). The lines' pitch is not used: in
+  // a camera looking along the road they are nearly parallel, and their convergence was 0.3-0.8
+  // deg off on KITTI (trees, few facades), which moved the anchors.
+  bool bundle_vertical_lines = true;
+  VerticalLinesOptions vertical_lines;
   double min_inlier_share = 0.3;        // reliability: share of points within the finest distance
   double max_rms_m = 0.15;              // reliability: RMS residual of the inliers, metres
   double max_scale_change = 0.2;        // reliability: |scale / seed scale - 1|
