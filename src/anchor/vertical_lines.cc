@@ -87,13 +87,16 @@ std::optional<VerticalDirection> MeasureVertical(const cv::Mat& grey,
   // longest in all wins.
   const double inlier_sin = std::sin(options.inlier_deg * kDegToRad);
   const double min_up_cos = std::cos(options.max_from_upright_deg * kDegToRad);
-  const auto inliers_of = [&](const Eigen::Vector3d& v, double* score) {
+  // The segments within inlier_deg of a plane through `v`: their summed weight, their number.
+  const auto inliers_of = [&](const Eigen::Vector3d& v, double* score, int* count) {
     std::vector<char> in(segments.size(), 0);
     *score = 0.0;
+    *count = 0;
     for (size_t i = 0; i < segments.size(); ++i) {
       if (std::abs(segments[i].normal.dot(v)) < inlier_sin) {
         in[i] = 1;
         *score += segments[i].weight;
+        ++*count;
       }
     }
     return in;
@@ -102,6 +105,7 @@ std::optional<VerticalDirection> MeasureVertical(const cv::Mat& grey,
   std::uniform_int_distribution<size_t> pick(0, segments.size() - 1);
   std::vector<char> best;
   double best_score = -1.0;
+  int best_count = 0;
   for (int it = 0; it < options.ransac_iterations; ++it) {
     const size_t i = pick(rng), j = pick(rng);
     if (i == j) continue;
@@ -111,23 +115,23 @@ std::optional<VerticalDirection> MeasureVertical(const cv::Mat& grey,
     if (v.y() > 0.0) v = -v;
     if (-v.y() < min_up_cos) continue;
     double score = 0.0;
-    std::vector<char> in = inliers_of(v, &score);
+    int count = 0;
+    std::vector<char> in = inliers_of(v, &score, &count);
     if (score > best_score) {
       best_score = score;
       best = std::move(in);
+      best_count = count;
     }
   }
   if (best.empty()) return std::nullopt;
   Eigen::Vector3d v = Eigen::Vector3d::Zero();
   for (int round = 0; round < 3; ++round) {
-    int count = 0;
-    for (const char c : best) count += c;
-    if (count < options.min_segments) return std::nullopt;
+    if (best_count < options.min_segments) return std::nullopt;
     v = Refit(segments, best);
-    double score = 0.0;
-    best = inliers_of(v, &score);
+    double unused_score = 0.0;
+    best = inliers_of(v, &unused_score, &best_count);
   }
-  if (-v.y() < min_up_cos) return std::nullopt;
+  if (-v.y() < min_up_cos || best_count < options.min_segments) return std::nullopt;
 
   VerticalDirection out;
   out.up_in_cam = v;
@@ -137,7 +141,6 @@ std::optional<VerticalDirection> MeasureVertical(const cv::Mat& grey,
   // tangents changes it by a n_i . t_x + b n_i . t_z.
   Eigen::Matrix2d information = Eigen::Matrix2d::Zero();
   double weighted_sq = 0.0;
-  int count = 0;
   for (size_t i = 0; i < segments.size(); ++i) {
     if (!best[i]) continue;
     const Segment& s = segments[i];
@@ -145,11 +148,9 @@ std::optional<VerticalDirection> MeasureVertical(const cv::Mat& grey,
     const double e = s.normal.dot(v);
     information += s.weight * j * j.transpose();
     weighted_sq += s.weight * e * e;
-    ++count;
   }
-  if (count < options.min_segments) return std::nullopt;
-  out.segments = count;
-  const double variance = std::max(weighted_sq / static_cast<double>(count - 2), 1e-14);
+  out.segments = best_count;
+  const double variance = std::max(weighted_sq / static_cast<double>(best_count - 2), 1e-14);
   // Two or more planes at an angle to each other fix both axes; all in one plane fix one.
   if (!(information.determinant() > 1e-12 * information.squaredNorm())) return std::nullopt;
   const double floor = options.floor_deg * kDegToRad;

@@ -209,16 +209,15 @@ struct StructureAnchorOptions {
   // 0.05-0.07 m behind, with the true poses as the VO 0.011 m); scale, height and flags are kept.
   // Why: the registrations fit the structure's points to the map, and the structure triangulated
   // along the VO's poses is turned against its cameras (synthetic street: up to 0.09 deg, mostly
-  // roll) and bent by the depths of
-  // its thin- parallax points; the bundle lets the images say where the points are and the map
-  // where they lie, and the camera follows its own sightings. The window is the anchors'
-  // (window_m); one chunk over many anchors, not one bundle per anchor, because each anchor's own
-  // window is one-sided at the drive's ends and its cameras' subsets (every 3rd camera, or 3000 of
-  // the 7600 points) turned the camera by 0.04 deg more: the rotation wants all the sightings.
-  // Synthetic 15 Hz street, the tests' / dense / 2 deg grade / sparse map: rotation max 0.094 /
-  // 0.101 / 0.099 / 0.169 -> 0.043 / 0.045 / 0.040 / 0.080 deg; KITTI with the SIFT structure:
-  // rotation max +0.02 to +0.05 deg (its yaw error is the truth's heading, README), positions
-  // unchanged.
+  // roll) and bent by the depths of its thin-parallax points; the bundle lets the images say where
+  // the points are and the map where they lie, and the camera follows its own sightings. The window
+  // is the anchors' (window_m); one chunk over many anchors, not one bundle per anchor, because
+  // each anchor's own window is one-sided at the drive's ends and its cameras' subsets (every 3rd
+  // camera, or 3000 of the 7600 points) turned the camera by 0.04 deg more: the rotation wants all
+  // the sightings. Synthetic 15 Hz street, the tests' / dense / 2 deg grade / sparse map: rotation
+  // max 0.094 / 0.101 / 0.099 / 0.169 -> 0.043 / 0.045 / 0.040 / 0.080 deg; KITTI with the SIFT
+  // structure: rotation max +0.02 to +0.05 deg (its yaw error is the truth's heading, README),
+  // positions unchanged.
   bool map_bundle = true;
   double bundle_window_m = 40.0;
   int bundle_iterations = 10;  // Levenberg-Marquardt iterations per distance
