@@ -11,12 +11,11 @@
 #include <spdlog/spdlog.h>
 
 #include "anchor_internal.h"
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // One rendering of the map at a pose, matched and solved.
 struct Attempt {

@@ -14,6 +14,7 @@
 #include "epiloc/camera/camera.h"
 #include "epiloc/cloud/cloud_io.h"
 #include "epiloc/cloud/tiled_cloud.h"
+#include "epiloc/core/angles.h"
 #include "epiloc/geo/geodetic.h"
 #include "epiloc/geo/rigid3.h"
 #include "epiloc/io/drive.h"
@@ -44,7 +45,6 @@ inline Rigid3d MapFromSample(const EnuFrame& map_frame,
 
 // Pitch (optical axis above the horizon) and roll (x axis below it) of a camera, degrees.
 inline std::pair<double, double> PitchRollDeg(const Eigen::Matrix3d& map_from_cam) {
-  constexpr double kRadToDeg = 180.0 / M_PI;
   const double pitch = std::asin(std::clamp(map_from_cam(2, 2), -1.0, 1.0)) * kRadToDeg;
   const double roll = std::asin(std::clamp(-map_from_cam(2, 0), -1.0, 1.0)) * kRadToDeg;
   return {pitch, roll};

@@ -13,14 +13,13 @@
 #include "epiloc/anchor/structure_registration.h"
 #include "epiloc/cloud/cloud_io.h"
 #include "epiloc/cloud/voxel.h"
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 #include "epiloc/core/parallel.h"
 #include "epiloc/core/statistics.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // The scan's points (sensor frame) within the range limits, thinned by the voxel filter.
 PointCloud ReadThinnedScan(const Drive& drive,

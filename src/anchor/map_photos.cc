@@ -6,12 +6,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include "anchor_internal.h"
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // Bilinear sample at (x, y) in [0, cols - 1] x [0, rows - 1] (images of at least 2 x 2).
 float SampleBilinear(const cv::Mat& grey, float x, float y) {

@@ -4,12 +4,11 @@
 #include <cmath>
 #include <random>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // Value and derivative at 0 of the least-squares quadratic a + b t + c t^2 through (t_i, y_i).
 // Returns false for a singular system.

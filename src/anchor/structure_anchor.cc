@@ -20,6 +20,7 @@
 #include "anchor_internal.h"
 #include "epiloc/cloud/tiled_cloud.h"
 #include "epiloc/cloud/voxel.h"
+#include "epiloc/core/angles.h"
 #include "epiloc/core/csv.h"
 #include "epiloc/core/error.h"
 #include "epiloc/core/parallel.h"
@@ -27,8 +28,6 @@
 
 namespace epiloc {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 struct Fit {
   StructureRegistration registration;

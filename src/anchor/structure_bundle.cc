@@ -9,6 +9,7 @@
 #include <ceres/rotation.h>
 #include <spdlog/spdlog.h>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 #include "epiloc/core/parallel.h"
 #include "epiloc/io/frame_reader.h"
@@ -17,8 +18,6 @@
 namespace epiloc {
 namespace structure_internal {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // Reprojection error in pixels of a point seen at normalised coordinates `x`; the pose is
 // cam_from_map as angle-axis (3) and translation (3).

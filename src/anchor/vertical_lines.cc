@@ -8,12 +8,11 @@
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 struct Segment {
   Eigen::Vector3d normal;  // of the interpretation plane, unit

@@ -5,12 +5,11 @@
 #include <cstddef>
 #include <limits>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 struct Point {
   int pair = -1;  // index into the input pairs
@@ -110,7 +109,7 @@ AlongTrackMeasurement MeasureAlongTrack(const std::vector<PairResult>& pairs,
     point.s = db_s_m.at(p.db_index);
     point.u = p.signed_cot;
     // σ_φ ≈ σ_px / (f p √N); the parallax check of the epipole keeps p away from zero.
-    const double parallax_rad = std::max(p.parallax_deg, 0.01) * kDeg;
+    const double parallax_rad = std::max(p.parallax_deg, 0.01) * kDegToRad;
     const double sigma_angle = options.feature_sigma_px /
                                (focal_px * parallax_rad * std::sqrt(std::max(1, p.num_inliers)));
     point.sigma = sigma_angle * (1.0 + point.u * point.u);

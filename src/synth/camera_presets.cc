@@ -3,13 +3,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 #include "epiloc/synth/trajectory.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 // Radial distortion factor and the derivative of the distorted radius r * factor(r) in r.
 double RadialSlope(const Camera& camera, double r) {
@@ -29,7 +28,7 @@ bool Inverts(const Camera& camera, const Eigen::Vector2d& distorted) {
 double HorizontalFovDeg(const Camera& camera) {
   const Eigen::Vector2d left = camera.Unproject(Eigen::Vector2d(-0.5, camera.cy));
   const Eigen::Vector2d right = camera.Unproject(Eigen::Vector2d(camera.width - 0.5, camera.cy));
-  return (std::atan(right.x()) - std::atan(left.x())) / kDeg;
+  return (std::atan(right.x()) - std::atan(left.x())) / kDegToRad;
 }
 
 Camera WithHorizontalFovDeg(const Camera& camera, double hfov_deg) {

@@ -3,13 +3,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 #include "epiloc/synth/texture.h"
 
 namespace epiloc {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
 constexpr double kCarPixelsPerM = 60.0;  // as the parked cars (world.cc)
 
 // A vertical rectangle facing `outward`, as the world builder's uprights: u to the right and v
@@ -113,7 +113,7 @@ World ChangeParkedCars(const World& world,
       const double d =
           slot.side * (road.lane_width_m + 0.5 * road.parking_width_m) + rng.Uniform(-0.15, 0.15);
       const double yaw =
-          world.centreline.YawAt(s) + rng.Uniform(-2, 2) * kDeg + (slot.side > 0 ? M_PI : 0.0);
+          world.centreline.YawAt(s) + rng.Uniform(-2, 2) * kDegToRad + (slot.side > 0 ? M_PI : 0.0);
       const Eigen::Vector2d c = world.centreline.PointAt(s, d);
       const Rigid3d world_from_body(
           Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())),

@@ -3,12 +3,11 @@
 #include <cmath>
 #include <limits>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 // Quintic smoothstep on [0, 1] (clamped): zero first and second derivatives at both ends.
 double SmootherStep(double x, double* derivative) {
@@ -111,7 +110,7 @@ double TurnInJoinDistance(double turn_deg, double offset_m, double radius_m) {
   // origin heading turn_deg left of x), the arc's centre lies at (x_join, offset - radius); the
   // approach line tangent to the arc at turn_deg has the lateral offset offset_m from the axis
   // exactly when x_join = (radius - offset) tan(turn / 2).
-  return (radius_m - offset_m) * std::tan(0.5 * turn_deg * kDeg);
+  return (radius_m - offset_m) * std::tan(0.5 * turn_deg * kDegToRad);
 }
 
 Centreline TurnInLeadIn(const Centreline& street,
@@ -133,7 +132,7 @@ Centreline TurnInLeadIn(const Centreline& street,
                "turn-in: the street is not straight from the junction at s = {} m to the join at "
                "s = {} m",
                junction_s_m, join_s);
-  const double phi = turn_deg * kDeg;
+  const double phi = turn_deg * kDegToRad;
   const double yaw = street.YawAt(join_s);
   const Eigen::Vector2d join = street.PointAt(join_s, offset_m);
   const Eigen::Vector2d left(-std::sin(yaw), std::cos(yaw));

@@ -7,12 +7,11 @@
 #include <mutex>
 #include <thread>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 // What ray casting needs of a surface, computed once per world.
 struct CastSurface {
@@ -69,8 +68,8 @@ std::vector<LidarPoint> CastScan(const World& world,
   const bool full = o.azimuth_fov_deg >= 360.0 - 1e-9;
   const int num_columns =
       static_cast<int>(std::floor(o.azimuth_fov_deg / o.azimuth_step_deg)) + (full ? 0 : 1);
-  const double first_az = full ? -180.0 * kDeg : -0.5 * o.azimuth_fov_deg * kDeg;
-  const double step = o.azimuth_step_deg * kDeg;
+  const double first_az = full ? -180.0 * kDegToRad : -0.5 * o.azimuth_fov_deg * kDegToRad;
+  const double step = o.azimuth_step_deg * kDegToRad;
   // Candidate surfaces per azimuth column, from each surface's angular span seen from above.
   std::vector<std::vector<const CastSurface*>> columns(num_columns);
   for (const CastSurface& c : surfaces) {
@@ -125,7 +124,7 @@ std::vector<LidarPoint> CastScan(const World& world,
           (o.num_rings == 1 ? o.min_elevation_deg
                             : o.min_elevation_deg + (o.max_elevation_deg - o.min_elevation_deg) *
                                                         ring / (o.num_rings - 1)) *
-          kDeg;
+          kDegToRad;
       const Eigen::Vector3d dir = r * Eigen::Vector3d(std::cos(el) * std::cos(az),
                                                       std::cos(el) * std::sin(az), std::sin(el));
       double best = o.max_range_m;

@@ -6,6 +6,7 @@
 #include <limits>
 #include <vector>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 #include "epiloc/synth/drive_line.h"
 #include "epiloc/synth/world.h"
@@ -13,7 +14,6 @@
 namespace epiloc {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
 // The junction leaves room for a right turn of up to this radius (of the car's path; urban
 // junctions are turned at 5-12 m) on a line up to 1 m right of the right lane's centre.
 constexpr double kRoomTurnRadiusM = 12.0;
@@ -79,7 +79,7 @@ struct JunctionFrame {
       : origin(street.PointAt(junction_s_m)),
         x(street.TangentAt(junction_s_m)),
         y(street.LeftAt(junction_s_m)),
-        phi(angle_deg * kDeg) {
+        phi(angle_deg * kDegToRad) {
     a = -(std::cos(phi) * x + std::sin(phi) * y);
     b = Eigen::Vector2d(-a.y(), a.x());
   }
@@ -192,7 +192,7 @@ class SideStreetBuilder {
 };
 
 void SideStreetBuilder::StraightExtent(double* lo, double* hi) const {
-  const double phi = options_.angle_deg * kDeg;
+  const double phi = options_.angle_deg * kDegToRad;
   // The mouth across the street's pavement: x of the lines w = +-outer between the pavement's
   // outer edge and the kerb line.
   *lo = 1e300;

@@ -3,12 +3,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
 constexpr double kStepM = 0.05;  // resolution of the speed profile
 
 // world_from_cam rotation for a camera looking along yaw (from east, counter-clockwise) and
@@ -307,14 +307,14 @@ Rigid3d DrivePath::CamFromWorld(double timestamp_s) const {
   const double t = options_.still_when_stopped ? MovingTime(t_since_start) : t_since_start;
   const double w = 2 * M_PI / options_.wobble_period_s;
   const double yaw_wobble =
-      options_.wobble_yaw_deg * kDeg *
+      options_.wobble_yaw_deg * kDegToRad *
       (0.8 * std::sin(w * t + phase_[0]) + 0.2 * std::sin(2.7 * w * t + phase_[1]));
   const double pitch_wobble =
-      options_.wobble_pitch_deg * kDeg *
+      options_.wobble_pitch_deg * kDegToRad *
       (0.8 * std::sin(w / 0.63 * t + phase_[2]) + 0.2 * std::sin(3.1 * w * t + phase_[3]));
   const LinePose pose = line_.At(s);
-  const double yaw = pose.yaw_rad + options_.mount_yaw_deg * kDeg + yaw_wobble;
-  const double pitch = options_.mount_pitch_deg * kDeg + pitch_wobble;
+  const double yaw = pose.yaw_rad + options_.mount_yaw_deg * kDegToRad + yaw_wobble;
+  const double pitch = options_.mount_pitch_deg * kDegToRad + pitch_wobble;
   const Eigen::Matrix3d world_from_cam = WorldFromCamRotation(yaw, pitch);
   const Eigen::Vector2d& p = pose.position_in_world;
   const Eigen::Vector3d centre(p.x(), p.y(), road_height_m_ + options_.camera_height_m);
@@ -363,7 +363,7 @@ PositionTrack SimulateGnss(const DrivePath& path,
     if (options.with_orientation) {
       const Eigen::Matrix3d enu_from_cam = LocalEnuFromWorldEnu(world_frame, sample.position) *
                                            cam_from_world.rotation.toRotationMatrix().transpose();
-      sample.enu_from_cam = (SmallRotation(options.orientation_sigma_deg * kDeg, rng) *
+      sample.enu_from_cam = (SmallRotation(options.orientation_sigma_deg * kDegToRad, rng) *
                              Eigen::Quaterniond(enu_from_cam))
                                 .normalized();
     }

@@ -12,12 +12,11 @@
 
 #include "anchor_test_util.h"
 #include "epiloc/cloud/cloud_io.h"
+#include "epiloc/core/angles.h"
 #include "test_util.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 struct Errors {
   int ok = 0;

@@ -7,13 +7,13 @@
 #include <gtest/gtest.h>
 
 #include "epiloc/anchor/structure_anchor.h"
+#include "epiloc/core/angles.h"
 #include "structure_anchor_internal.h"
 #include "test_util.h"
 
 namespace epiloc {
 namespace {
 
-constexpr double kDegToRad = M_PI / 180.0;
 constexpr double kFocalPx = 500.0;
 
 // The corridor: facades at x = -6 and x = +6 m (0 to 8 m high), the ground at z = 0, the road

@@ -9,13 +9,12 @@
 
 #include <gtest/gtest.h>
 
+#include "epiloc/core/angles.h"
 #include "structure_anchor_internal.h"
 #include "test_util.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // Six anchors 5 m apart along a VO trajectory scaled 2x into the map: with exact similarities
 // each is placed where its neighbours put it; one similarity 1 m off along the road is that far

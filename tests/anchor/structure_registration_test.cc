@@ -6,12 +6,11 @@
 
 #include <gtest/gtest.h>
 
+#include "epiloc/core/angles.h"
 #include "test_util.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // A street of surfaces: the road (z = 0), two facades (y = +-7) with recessed windows, boxes
 // (parked cars) and poles, sampled every `step_m`. The windows and boxes give surfaces facing

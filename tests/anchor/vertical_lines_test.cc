@@ -10,12 +10,11 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
+#include "epiloc/core/angles.h"
 #include "epiloc/core/error.h"
 
 namespace epiloc {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 Camera TestCamera() {
   Camera c;
